@@ -1,0 +1,479 @@
+"""Typed configuration: YAML → validated, immutable config objects.
+
+Every config object is a frozen pydantic model that rejects unknown keys. Errors are
+turned into one :class:`~granular_mpc.exceptions.ConfigError` naming the dotted key path,
+the offending value, what is allowed and — for misspelt keys — the closest valid key.
+
+Scenario files (``sim/*.yaml``) refer to a robot file (``models/<robot>.yaml``) and a
+terrain file (``models/terrain/<name>.yaml``) by name. :func:`load_scenario` resolves
+those references into one plain dictionary (the *resolved config*, saved with every run),
+applies ``--set key.path=value`` overrides, then validates it.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal, Mapping, Sequence, Union, get_args, get_origin
+
+import yaml
+from pydantic import (BaseModel, ConfigDict, Field, ValidationError, field_validator,
+                      model_validator)
+
+from .exceptions import ConfigError, ModelFileError
+from .paths import resolve_file
+
+# --------------------------------------------------------------------------------------
+# Base class and helpers
+# --------------------------------------------------------------------------------------
+
+
+class StrictModel(BaseModel):
+    """Frozen config object; unknown keys are errors."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True,
+                              arbitrary_types_allowed=False)
+
+
+PositiveFloat = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
+NonNegFloat = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+
+
+def _fmt_loc(loc: Sequence[Any]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+def _model_fields_at(model: type[BaseModel], loc: Sequence[Any]) -> list[str]:
+    """Field names of the (nested) model addressed by ``loc`` — for did-you-mean hints."""
+    current: Any = model
+    for part in loc:
+        current = _unwrap(current, part)
+        if current is None:
+            return []
+    if isinstance(current, type) and issubclass(current, BaseModel):
+        return list(current.model_fields)
+    return []
+
+
+def _unwrap(tp: Any, part: Any) -> Any:
+    """Follow one loc element through annotations, lists, dicts and unions."""
+    if isinstance(tp, type) and issubclass(tp, BaseModel):
+        if isinstance(part, str) and part in tp.model_fields:
+            return _strip(tp.model_fields[part].annotation)
+        return None
+    origin = get_origin(tp)
+    if origin in (list, tuple, Sequence) and isinstance(part, int):
+        args = get_args(tp)
+        return _strip(args[0]) if args else None
+    if origin in (dict, Mapping) and isinstance(part, str):
+        args = get_args(tp)
+        return _strip(args[1]) if len(args) == 2 else None
+    if origin is Union or str(origin) == "types.UnionType":
+        for arg in get_args(tp):
+            arg = _strip(arg)
+            if isinstance(arg, type) and issubclass(arg, BaseModel):
+                kind = arg.model_fields.get("kind")
+                if kind is not None and part in get_args(kind.annotation):
+                    return arg
+        for arg in get_args(tp):
+            arg = _strip(arg)
+            found = _unwrap(arg, part)
+            if found is not None:
+                return found
+    return None
+
+
+def _strip(tp: Any) -> Any:
+    if get_origin(tp) is Annotated:
+        return get_args(tp)[0]
+    return tp
+
+
+def _is_tag(model: type[BaseModel], loc: Sequence[Any], i: int) -> bool:
+    """True if loc[i] is a discriminated-union tag inserted by pydantic."""
+    parent = model
+    for part in loc[:i]:
+        parent = _unwrap(parent, part)
+        if parent is None:
+            return False
+    origin = get_origin(parent)
+    return origin is Union or str(origin) == "types.UnionType"
+
+
+def validate(model: type[BaseModel], data: Any, *, source: str = "", prefix: str = ""):
+    """Validate ``data`` against ``model``; raise one ConfigError listing every problem."""
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        messages = []
+        first_key = ""
+        first_value: Any = None
+        allowed_first = ""
+        for err in exc.errors():
+            loc = list(err["loc"])
+            # drop discriminator tags (e.g. 'granular') that pydantic inserts in the loc
+            clean = [p for i, p in enumerate(loc) if not _is_tag(model, loc, i)]
+            key = _fmt_loc(([prefix] if prefix else []) + clean)
+            typ = err["type"]
+            allowed = ""
+            if typ == "extra_forbidden":
+                valid = _model_fields_at(model, [p for p in loc[:-1]])
+                close = difflib.get_close_matches(str(loc[-1]), valid, n=1, cutoff=0.5)
+                hint = f"; did you mean '{close[0]}'?" if close else ""
+                msg = f"unknown key '{loc[-1]}'{hint}"
+                allowed = ", ".join(valid)
+            elif typ == "missing":
+                msg = "required key is missing"
+            elif typ == "union_tag_invalid":
+                ctx = err.get("ctx", {})
+                msg = f"unknown kind {ctx.get('tag')!r}"
+                allowed = str(ctx.get("expected_tags", ""))
+            else:
+                msg = f"{err['msg']} (got {err.get('input')!r})"
+            if not first_key:
+                first_key, first_value, allowed_first = key, err.get("input"), allowed
+            line = f"{key}: {msg}" if key else msg
+            if allowed and typ != "extra_forbidden":
+                line += f" (allowed: {allowed})"
+            elif allowed:
+                line += f" (valid keys here: {allowed})"
+            messages.append(line)
+        text = messages[0] if len(messages) == 1 else (
+            f"{len(messages)} problems:\n  - " + "\n  - ".join(messages))
+        err = ConfigError(text, value=first_value, allowed=allowed_first, source=source)
+        err.key = first_key
+        raise err from None
+
+
+def load_yaml(path: str | Path) -> dict[str, Any]:
+    """Read a YAML mapping; a missing or malformed file raises one clear error."""
+    p = Path(path)
+    if not p.is_file():
+        raise ModelFileError(f"file not found: {p}", value=str(p))
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ModelFileError(f"cannot read {p}: {exc.strerror}", value=str(p)) from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise ConfigError(f"malformed YAML{where}: {problem}", source=str(p)) from None
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"top level must be a mapping, got {type(data).__name__}",
+                          source=str(p))
+    return data
+
+
+# --------------------------------------------------------------------------------------
+# Effects (optional physical terms, see terrain/effects.py)
+# --------------------------------------------------------------------------------------
+
+
+class EffectSpec(StrictModel):
+    """One optional physical effect, by registered name, with parameter values.
+
+    Accepts the compact string form ``"name:param=value,param=value"`` too.
+    """
+
+    name: str
+    params: dict[str, float] = Field(default_factory=dict)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _from_string(cls, value: Any) -> Any:
+        if isinstance(value, str):
+            return parse_effect_string(value)
+        return value
+
+
+def parse_effect_string(text: str) -> dict[str, Any]:
+    """``"inertial_drag:c_d=1.2"`` → ``{"name": "inertial_drag", "params": {"c_d": 1.2}}``."""
+    name, _, rest = text.partition(":")
+    params: dict[str, float] = {}
+    for item in filter(None, (s.strip() for s in rest.split(","))):
+        key, eq, val = item.partition("=")
+        if not eq:
+            raise ConfigError(f"effect parameter {item!r} must look like name=value",
+                              key="effect", value=text)
+        try:
+            params[key.strip()] = float(val)
+        except ValueError:
+            raise ConfigError(f"effect parameter {key.strip()!r} must be a number, got {val!r}",
+                              key="effect", value=text) from None
+    return {"name": name.strip(), "params": params}
+
+
+# --------------------------------------------------------------------------------------
+# Terrain
+# --------------------------------------------------------------------------------------
+
+
+class RFTCoefficients(StrictModel):
+    """Li et al. (2013) discrete-Fourier coefficients of the RFT stresses, generic set [N/cm³].
+
+    α_z = A00 + A10 cos2β + B11 sin(2β+γ) + B01 sinγ + Bm11 sin(γ−2β)
+    α_x = C11 cos(2β+γ) + C01 cosγ + Cm11 cos(γ−2β) + D10 sin2β
+    """
+
+    A00: FiniteFloat = 0.206
+    A10: FiniteFloat = 0.169
+    B11: FiniteFloat = 0.212
+    B01: FiniteFloat = 0.358
+    Bm11: FiniteFloat = 0.055
+    C11: FiniteFloat = -0.124
+    C01: FiniteFloat = 0.253
+    Cm11: FiniteFloat = 0.007
+    D10: FiniteFloat = 0.088
+
+
+class _TerrainBase(StrictModel):
+    name: str = Field("terrain", description="Human-readable name of the medium.")
+    description: str = ""
+    source: str = Field("", description="Where the parameter values come from.")
+    surface_height: FiniteFloat = Field(0.0, description="Height of the free surface z [m], world frame.")
+    effects: list[EffectSpec] = Field(default_factory=list)
+
+
+class GranularTerrainConfig(_TerrainBase):
+    """A granular layer (RFT closed form, solidified wedge, bulldozing) over rigid ground."""
+
+    kind: Literal["granular"] = "granular"
+    zeta: PositiveFloat = Field(1.36, description="RFT scaling ζ of the generic coefficients [-].")
+    phi_s_deg: float = Field(38.0, gt=0.0, lt=90.0, allow_inf_nan=False,
+                             description="Solidified-zone (granular friction) angle φ_s [deg], in (0, 90).")
+    density: PositiveFloat = Field(1660.0, description="Bulk density ρ [kg/m³].")
+    layer_depth: PositiveFloat = Field(0.12, description="Thickness of the layer over rigid ground [m].")
+    bulldozing_length: PositiveFloat = Field(0.01, description="Bulldozing saturation length λ [m] (calibrated).")
+    sole_shear_alpha: NonNegFloat = Field(0.136, description="Generic in-plane shear stress per depth of the sole [N/cm³] (α_x(0,0)).")
+    added_mass_scale: NonNegFloat = Field(1.0, description="Scale of the solidified-zone added mass [-].")
+    contact_stiffness: PositiveFloat = Field(2.0e5, description="Elastic regularisation stiffness per contact patch [N/m].")
+    contact_damping: NonNegFloat = Field(100.0, description="Elastic-regime damping per patch [N·s/m].")
+    bottom_friction: PositiveFloat = Field(0.8, description="Coulomb friction of the rigid floor under the layer [-].")
+    direction_time_constant: PositiveFloat = Field(0.01, description="Blends elastic displacement into the flow direction at low speed [s].")
+    rft: RFTCoefficients = Field(default_factory=RFTCoefficients)
+
+
+class RigidTerrainConfig(_TerrainBase):
+    """Rigid, non-sinking ground: stiff unilateral contact with Coulomb friction."""
+
+    kind: Literal["rigid"] = "rigid"
+    friction: PositiveFloat = Field(0.8, description="Coulomb friction coefficient μ [-].")
+    contact_stiffness: PositiveFloat = Field(1.0e5, description="Normal and tangential stiffness per patch [N/m].")
+    contact_damping: NonNegFloat = Field(100.0, description="Normal and tangential damping per patch [N·s/m].")
+
+
+TerrainConfig = Annotated[Union[GranularTerrainConfig, RigidTerrainConfig],
+                          Field(discriminator="kind")]
+
+
+# --------------------------------------------------------------------------------------
+# Robot
+# --------------------------------------------------------------------------------------
+
+
+class FootGeometry(StrictModel):
+    """Semi-cylindrical rigid sole: a circular arc in the foot's x–z plane, extruded along y."""
+
+    chord: PositiveFloat = Field(0.075, description="Chord of the sole arc along x [m].")
+    height: PositiveFloat = Field(0.024, description="Arc height (sagitta) [m].")
+    width: PositiveFloat = Field(0.063, description="Width W along y [m].")
+    slices: int = Field(2, ge=1, le=8, description="Contact patches across the width (roll/yaw moments).")
+
+    @model_validator(mode="after")
+    def _check(self) -> "FootGeometry":
+        if self.height > self.chord / 2:
+            raise ValueError("foot.height must not exceed chord/2 (arc at most a half circle)")
+        return self
+
+    @property
+    def radius(self) -> float:
+        """Arc radius R = (c²/4 + h²) / (2h) [m]."""
+        return (self.chord ** 2 / 4.0 + self.height ** 2) / (2.0 * self.height)
+
+    @property
+    def half_angle(self) -> float:
+        """Half-angle ψ_max of the arc about the foot's −z axis [rad]."""
+        return math.asin(self.chord / (2.0 * self.radius))
+
+
+class FootConfig(StrictModel):
+    frame: str = Field(description="URDF frame at the centre of the sole arc; x forward, z up.")
+
+
+class RobotConfig(StrictModel):
+    """A biped description: URDF plus what the URDF cannot say."""
+
+    name: str
+    urdf: str = Field(description="URDF path, relative to the robot YAML file.")
+    joints: list[str] = Field(min_length=6, max_length=6,
+                              description="Actuated joints: left hip abd., hip pitch, knee, then right.")
+    feet: dict[Literal["left", "right"], FootConfig]
+    foot: FootGeometry = Field(default_factory=FootGeometry)
+    standing_joints: list[FiniteFloat] = Field(min_length=6, max_length=6,
+                                                description="Nominal standing joint angles [rad].")
+    joint_damping: NonNegFloat = Field(0.0, description="Viscous joint damping [N·m·s/rad].")
+    source_dir: str = Field("", description="Folder of the robot file (filled in by the loader).")
+
+    @property
+    def urdf_path(self) -> Path:
+        p = Path(self.urdf)
+        return p if p.is_absolute() else Path(self.source_dir) / p
+
+
+# --------------------------------------------------------------------------------------
+# Simulation
+# --------------------------------------------------------------------------------------
+
+
+class SimConfig(StrictModel):
+    dt: float = Field(5.0e-4, gt=0.0, le=0.01, description="Plant integration step [s].")
+    integrator: Literal["verlet", "semi_implicit_euler"] = "verlet"
+    duration: PositiveFloat = Field(2.0, description="Simulated time [s].")
+    seed: int = 0
+    max_speed: PositiveFloat = Field(200.0, description="Divergence bound on |v| [m/s, rad/s].")
+
+
+class DropConfig(StrictModel):
+    """Drop test: joints held at the standing pose by stiff PD, released above the surface."""
+
+    height: NonNegFloat = Field(0.02, description="Clearance of the lowest sole point above the surface [m].")
+    kp: PositiveFloat = Field(150.0, description="Joint PD stiffness [N·m/rad].")
+    kd: NonNegFloat = Field(3.0, description="Joint PD damping [N·m·s/rad].")
+
+
+# --------------------------------------------------------------------------------------
+# Loading robot / terrain files
+# --------------------------------------------------------------------------------------
+
+
+def robot_dict(name_or_path: str, *, relative_to: Path | None = None, key: str = "robot") -> dict:
+    path = resolve_file("robot", name_or_path, relative_to=relative_to, key=key)
+    data = load_yaml(path)
+    data.setdefault("source_dir", str(path.parent))
+    return data
+
+
+def terrain_dict(name_or_path: str, *, relative_to: Path | None = None, key: str = "terrain") -> dict:
+    path = resolve_file("terrain", name_or_path, relative_to=relative_to, key=key)
+    return load_yaml(path)
+
+
+def load_robot(name_or_path: str = "yobogo10s") -> RobotConfig:
+    """Load and validate a robot file by name (``models/<name>.yaml``) or path."""
+    path = resolve_file("robot", name_or_path, key="robot")
+    data = load_yaml(path)
+    data.setdefault("source_dir", str(path.parent))
+    return validate(RobotConfig, data, source=str(path))
+
+
+def load_terrain(name_or_path: str = "dry_sand", **overrides: Any):
+    """Load and validate a terrain file by name (``models/terrain/<name>.yaml``) or path."""
+    path = resolve_file("terrain", name_or_path, key="terrain")
+    data = load_yaml(path)
+    data.update(overrides)
+    return validate(_TerrainAdapter, {"terrain": data}, source=str(path)).terrain
+
+
+class _TerrainAdapter(StrictModel):
+    terrain: TerrainConfig
+
+
+def terrain_from_dict(data: Mapping[str, Any], *, source: str = ""):
+    """Validate an in-memory terrain mapping (e.g. built in user code)."""
+    return validate(_TerrainAdapter, {"terrain": dict(data)}, source=source).terrain
+
+
+# --------------------------------------------------------------------------------------
+# Overrides: --set key.path=value
+# --------------------------------------------------------------------------------------
+
+
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """``"terrain.zeta=1.5"`` → (["terrain", "zeta"], 1.5). Values are parsed as YAML."""
+    key, eq, raw = text.partition("=")
+    if not eq or not key.strip():
+        raise ConfigError(f"override {text!r} must look like key.path=value", key="--set")
+    try:
+        value = yaml.safe_load(raw) if raw.strip() else ""
+    except yaml.YAMLError:
+        value = raw
+    return [k for k in key.strip().split(".")], value
+
+
+def apply_override(data: dict, path: list[str], value: Any, *, schema: type[BaseModel] | None = None) -> None:
+    """Set ``data[path] = value`` in place; the key must exist in ``schema`` (if given)."""
+    if schema is not None:
+        _check_path_in_schema(schema, path)
+    node = data
+    for i, part in enumerate(path[:-1]):
+        nxt = node.get(part) if isinstance(node, dict) else None
+        if nxt is None:
+            nxt = {}
+            node[part] = nxt
+        elif not isinstance(nxt, dict):
+            raise ConfigError(f"cannot set a sub-key of a {type(nxt).__name__}",
+                              key=".".join(path[: i + 1]))
+        node = nxt
+    node[path[-1]] = value
+
+
+def _check_path_in_schema(schema: type[BaseModel], path: list[str]) -> None:
+    current: Any = schema
+    for i, part in enumerate(path):
+        # dict-valued fields accept any key
+        if get_origin(current) in (dict, Mapping):
+            current = _strip(get_args(current)[1])
+            continue
+        fields = _fields_of(current)
+        if fields is None:
+            raise ConfigError("this key has no sub-keys", key=".".join(path[:i]))
+        if part not in fields:
+            close = difflib.get_close_matches(part, list(fields), n=1, cutoff=0.5)
+            hint = f"; did you mean '{close[0]}'?" if close else ""
+            raise ConfigError(f"no such key '{part}'{hint}", key=".".join(path[: i + 1]),
+                              allowed=", ".join(sorted(fields)))
+        current = fields[part]
+
+
+def _fields_of(tp: Any) -> dict[str, Any] | None:
+    tp = _strip(tp)
+    if isinstance(tp, type) and issubclass(tp, BaseModel):
+        return {k: _strip(f.annotation) for k, f in tp.model_fields.items()}
+    origin = get_origin(tp)
+    if origin is Union or str(origin) == "types.UnionType":
+        merged: dict[str, Any] = {}
+        for arg in get_args(tp):
+            sub = _fields_of(arg)
+            if sub:
+                for k, v in sub.items():
+                    merged.setdefault(k, v)
+        return merged or None
+    return None
+
+
+def to_plain(obj: Any) -> Any:
+    """A config object as plain YAML-friendly data (for config.resolved.yaml)."""
+    if isinstance(obj, BaseModel):
+        return to_plain(obj.model_dump(mode="json"))
+    if isinstance(obj, dict):
+        return {k: to_plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [to_plain(v) for v in obj]
+    return obj
+
+
+def dump_yaml(obj: Any, path: str | Path) -> None:
+    Path(path).write_text(yaml.safe_dump(to_plain(obj), sort_keys=False), encoding="utf-8")

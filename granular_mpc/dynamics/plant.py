@@ -1,0 +1,226 @@
+"""The augmented plant: 3-D floating-base biped (Pinocchio) + per-foot terrain contact.
+
+State: ``q`` (13: base position, base quaternion x y z w, 6 joints) and ``v`` (12: base
+twist in the trunk frame, joint rates) plus, per contact patch, the terrain's intrusion
+state (anchor, touchdown point C0, contact flag …, see :mod:`granular_mpc.terrain.contact`).
+Touchdown and lift-off follow from geometry: a patch is in contact while its lowest sole
+point is below the free surface — there is no scripted contact schedule.
+
+Integrators (``sim.integrator``):
+
+* ``verlet`` (default): velocity Verlet, kick–drift–kick, one dynamics evaluation per step
+  (the acceleration at the end of a step is reused at the start of the next one and
+  corrected exactly, ``Δa = M⁻¹ Δτ``, when the torque command changes). Symplectic,
+  second order: energy error bounded, O(dt²).
+* ``semi_implicit_euler``: v ← v + dt·a(q, v); q ← q ⊕ dt·v. First order, symplectic.
+
+Both integrate the configuration on its manifold (``pinocchio.integrate``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from ..config import SimConfig
+from ..exceptions import ConfigError, PlantDivergedError
+from ..robot.model import SIDES, Biped
+from ..terrain.base import TerrainModel
+from ..terrain.contact import ContactData
+
+_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_ZERO_FORCE = pin.Force.Zero()
+
+
+def _quat_matrix(quat_xyzw: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a unit quaternion given as (x, y, z, w)."""
+    x, y, z, w = quat_xyzw
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+@dataclass(frozen=True)
+class Plant:
+    """Immutable plant model: robot, terrain, step. State lives in :class:`PlantData`."""
+
+    biped: Biped
+    terrain: TerrainModel
+    sim: SimConfig = field(default_factory=SimConfig)
+
+    def __post_init__(self) -> None:
+        if self.terrain.foot != self.biped.config.foot:
+            raise ConfigError("the terrain model was built for another foot geometry",
+                              key="terrain", allowed="build_terrain(config, biped.config)")
+
+    @property
+    def dt(self) -> float:
+        return self.sim.dt
+
+    def new_data(self, q0: np.ndarray, v0: np.ndarray | None = None) -> "PlantData":
+        """Plant data starting at configuration ``q0`` [m, quaternion, rad] and ``v0``."""
+        model = self.biped.model
+        q0 = np.asarray(q0, dtype=float)
+        if q0.shape != (model.nq,):
+            raise ConfigError(f"q0 must have {model.nq} entries, got {q0.shape}", key="q0")
+        v0 = np.zeros(model.nv) if v0 is None else np.asarray(v0, dtype=float)
+        if v0.shape != (model.nv,):
+            raise ConfigError(f"v0 must have {model.nv} entries, got {v0.shape}", key="v0")
+        q0 = q0.copy()
+        q0[3:7] /= np.linalg.norm(q0[3:7])
+        return PlantData(self, q0, v0.copy())
+
+    # ------------------------------------------------------------------ dynamics
+    def forward(self, d: "PlantData", q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Generalised acceleration at (q, v) with the current torque and terrain forces.
+
+        Evaluates (but does not commit) the terrain contact; results land in ``d``.
+        """
+        model, pdata, contact = self.biped.model, d.pin, d.contact
+        pin.forwardKinematics(model, pdata, q, v)
+        for i, (fid, jid, to_joint) in enumerate(self._feet):
+            oMf = pin.updateFramePlacement(model, pdata, fid)
+            p = oMf.translation
+            # a swing foot whose sole cannot reach the surface costs nothing
+            if p[2] > self._clear_height and not contact.in_contact(i):
+                contact.skip(i)
+                d.fext[jid] = _ZERO_FORCE
+                continue
+            kin = contact.feet[i].kin
+            kin[0:3] = p
+            kin[3:12] = oMf.rotation.ravel("F")
+            kin[12:18] = pin.getFrameVelocity(model, pdata, fid, _LWA).vector
+            contact.evaluate(i)
+            d.fext[jid] = pin.Force(to_joint @ contact.feet[i].wrench_local)
+        w = d.base_wrench
+        if w is None:
+            d.fext[1] = _ZERO_FORCE
+        else:
+            # external wrench on the trunk, given in W at the trunk origin → trunk frame
+            if callable(w):
+                w = w(q, v)
+            R = _quat_matrix(q[3:7])
+            d.fext[1] = pin.Force(R.T @ w[0:3], R.T @ w[3:6])
+        return pin.aba(model, pdata, q, v, d.tau, d.fext)
+
+    @property
+    def _feet(self) -> tuple:
+        """(frame id, joint id, foot→joint force action matrix) per foot, cached."""
+        cache = self.__dict__.get("_feet_cache")
+        if cache is None:
+            model = self.biped.model
+            cache = tuple((self.biped.foot_frame[s], self.biped.foot_joint[s],
+                           model.frames[self.biped.foot_frame[s]].placement.toDualActionMatrix())
+                          for s in SIDES)
+            object.__setattr__(self, "_feet_cache", cache)
+        return cache
+
+    @property
+    def _clear_height(self) -> float:
+        """Foot-frame height above which no sole point can touch the surface [m]."""
+        return self.terrain.surface_height + self.biped.config.foot.radius + 0.005
+
+    def step(self, d: "PlantData", tau_a: np.ndarray | None = None) -> None:
+        """Advance ``d`` by one step ``dt`` with actuator torques ``tau_a`` [N·m] (held)."""
+        if tau_a is not None:
+            d.set_torque(tau_a)
+        dt = self.sim.dt
+        if self.sim.integrator == "verlet":
+            if d.a is None:
+                d.a = self.forward(d, d.q, d.v).copy()
+                d.contact.commit()
+            elif d.tau_changed:
+                # acceleration is affine in τ: correct the reused one exactly
+                minv = pin.computeMinverse(self.biped.model, d.pin, d.q)
+                d.a = d.a + minv @ (d.tau - d.tau_prev)
+            d.tau_changed = False
+            v_half = d.v + 0.5 * dt * d.a
+            q_new = pin.integrate(self.biped.model, d.q, v_half * dt)
+            a_new = self.forward(d, q_new, v_half)
+            d.v = v_half + 0.5 * dt * a_new
+            d.q = q_new
+            d.a = a_new.copy()
+        else:
+            a = self.forward(d, d.q, d.v)
+            d.v = d.v + dt * a
+            d.q = pin.integrate(self.biped.model, d.q, d.v * dt)
+            d.a = a.copy()
+        d.contact.commit()
+        d.tau_prev[:] = d.tau
+        d.t += dt
+        d.steps += 1
+        if not (np.abs(d.v).max() < self.sim.max_speed) or not np.isfinite(d.q).all():
+            reason = "non-finite" if not (np.isfinite(d.v).all() and np.isfinite(d.q).all()) \
+                else "velocity-bound"
+            raise PlantDivergedError(d.t, d.q, d.v, reason)
+
+    def simulate(self, d: "PlantData", duration: float, controller=None) -> None:
+        """Step for ``duration`` [s]; ``controller(d) -> tau_a`` is called every step."""
+        n = int(round(duration / self.sim.dt))
+        for _ in range(n):
+            self.step(d, None if controller is None else controller(d))
+
+    # ------------------------------------------------------------------ energy
+    def energy(self, d: "PlantData") -> tuple[float, float]:
+        """(kinetic, potential) energy [J], potential relative to z = 0."""
+        model = self.biped.model
+        ke = pin.computeKineticEnergy(model, d.pin, d.q, d.v)
+        pe = pin.computePotentialEnergy(model, d.pin, d.q)
+        return float(ke), float(pe)
+
+
+class PlantData:
+    """Changing part of the plant: time, state, torque, terrain contact state, buffers."""
+
+    def __init__(self, plant: Plant, q: np.ndarray, v: np.ndarray) -> None:
+        model = plant.biped.model
+        self.plant = plant
+        self.t = 0.0
+        self.steps = 0
+        self.q = q
+        self.v = v
+        self.a: np.ndarray | None = None
+        self.tau = np.zeros(model.nv)
+        self.tau_prev = np.zeros(model.nv)
+        self.tau_changed = False
+        self.pin = model.createData()
+        self.fext = pin.StdVec_Force()
+        for _ in range(model.njoints):
+            self.fext.append(pin.Force.Zero())
+        self.contact: ContactData = plant.terrain.new_data(plant.sim.dt)
+        #: optional external wrench on the trunk: (f_W [N], m_W [N·m]) at the trunk origin,
+        #: or a callable (q, v) -> that 6-vector (e.g. a test rig), evaluated every step
+        self.base_wrench = None
+        self._idx_v = plant.biped.idx_v
+
+    def set_torque(self, tau_a: np.ndarray) -> None:
+        """Hold actuator torques ``tau_a`` [N·m] (actuator order) from now on."""
+        tau_a = np.asarray(tau_a, dtype=float)
+        if not np.array_equal(self.tau[self._idx_v], tau_a):
+            self.tau[self._idx_v] = tau_a
+            self.tau_changed = True
+
+    @property
+    def tau_a(self) -> np.ndarray:
+        return self.tau[self._idx_v].copy()
+
+    # ------------------------------------------------------------------ read-outs
+    def foot_force(self, foot: int) -> np.ndarray:
+        """Total terrain force on foot ``foot`` (0 left, 1 right) in W [N]."""
+        return self.contact.feet[foot].force.sum(axis=0)
+
+    def foot_point(self, foot: int) -> np.ndarray:
+        """Mean contact point of foot ``foot``'s patches in W [m]."""
+        return self.contact.feet[foot].point.mean(axis=0)
+
+    def foot_in_contact(self, foot: int) -> bool:
+        return self.contact.in_contact(foot)
+
+    def foot_diag(self, foot: int) -> np.ndarray:
+        """Mean over the foot's patches of (depth, f_cap_z, x_s, y_s, z_s, ψ_c)."""
+        return self.contact.feet[foot].diag.mean(axis=0)
+
+
+__all__ = ["Plant", "PlantData"]

@@ -1,0 +1,146 @@
+"""One exception hierarchy for the whole package.
+
+Every error raised on purpose by ``granular_mpc`` derives from :class:`GranularMpcError`.
+Leaves carry the data needed to debug them (the offending key, file, row, time, state),
+so callers can inspect them rather than parse messages.
+
+    GranularMpcError
+    ├── ConfigError            bad YAML, unknown key, wrong type, value out of range
+    │   └── ModelFileError     a robot / terrain / scenario file is missing or unreadable
+    ├── ModelError             a model cannot be built (robot description, geometry)
+    ├── SimulationError
+    │   ├── PlantDivergedError non-finite or exploding plant state
+    │   └── RobotFellError     the closed loop left its safe set (optional, by request)
+    ├── SolverError            a QP could not be set up (bad dimensions, non-finite data)
+    ├── DataFormatError        a measurement data set breaks format v1 (all problems listed)
+    └── OutputError            an output folder cannot be written
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+
+class GranularMpcError(Exception):
+    """Root of every error raised on purpose by granular_mpc."""
+
+
+class ConfigError(GranularMpcError, ValueError):
+    """A configuration value is missing, unknown, of the wrong type or out of range.
+
+    Attributes:
+        key: dotted path of the offending key (``terrain.zeta``), or ``""``.
+        value: the offending value, if any.
+        allowed: what would have been accepted.
+        source: the file the value came from, if known.
+    """
+
+    def __init__(self, message: str, *, key: str = "", value: Any = None,
+                 allowed: str = "", source: str = "") -> None:
+        self.key = key
+        self.value = value
+        self.allowed = allowed
+        self.source = source
+        parts = []
+        if source:
+            parts.append(f"{source}: ")
+        if key:
+            parts.append(f"{key}: ")
+        parts.append(message)
+        if allowed:
+            parts.append(f" (allowed: {allowed})")
+        super().__init__("".join(parts))
+
+
+class ModelFileError(ConfigError, FileNotFoundError):
+    """A robot, terrain or scenario file named in a configuration cannot be found or read."""
+
+
+class ModelError(GranularMpcError):
+    """A physical model cannot be built from its description."""
+
+
+class SimulationError(GranularMpcError):
+    """The closed loop or the plant cannot continue."""
+
+
+class PlantDivergedError(SimulationError, FloatingPointError):
+    """The plant state became non-finite or exploded.
+
+    Attributes:
+        time: simulation time [s] at which divergence was detected.
+        q: configuration at that time (may contain NaN).
+        v: generalised velocity at that time.
+        reason: short machine-readable reason (``"non-finite"``, ``"velocity-bound"``).
+    """
+
+    def __init__(self, time: float, q: Sequence[float], v: Sequence[float], reason: str) -> None:
+        import numpy as np
+
+        self.time = float(time)
+        self.q = np.array(q, dtype=float)
+        self.v = np.array(v, dtype=float)
+        self.reason = reason
+        with np.printoptions(precision=4, suppress=True, linewidth=160):
+            super().__init__(
+                f"plant diverged at t = {self.time:.4f} s ({reason}); "
+                f"q = {self.q}, v = {self.v}. Reduce sim.dt or check the terrain "
+                "stiffness / controller gains.")
+
+
+class RobotFellError(SimulationError):
+    """The robot left its safe set (trunk too low, or roll/pitch too large)."""
+
+    def __init__(self, time: float, reason: str) -> None:
+        self.time = float(time)
+        self.reason = reason
+        super().__init__(f"robot fell at t = {time:.3f} s: {reason}")
+
+
+class SolverError(GranularMpcError):
+    """A QP could not be set up or solved for a reason other than infeasibility."""
+
+
+@dataclass
+class DataProblem:
+    """One problem found in a measurement data set."""
+
+    file: str
+    message: str
+    column: str = ""
+    row: int | None = None
+
+    def __str__(self) -> str:
+        where = self.file
+        if self.column:
+            where += f", column '{self.column}'"
+        if self.row is not None:
+            where += f", row {self.row}"
+        return f"{where}: {self.message}"
+
+
+class DataFormatError(GranularMpcError, ValueError):
+    """A measurement data set does not follow data format v1.
+
+    All problems are collected and reported at once in :attr:`problems`.
+    """
+
+    def __init__(self, problems: Sequence[DataProblem], root: str = "") -> None:
+        self.problems = list(problems)
+        self.root = root
+        head = f"{len(self.problems)} problem(s) in data set {root}".rstrip()
+        body = "\n".join(f"  - {p}" for p in self.problems[:200])
+        more = "" if len(self.problems) <= 200 else f"\n  … and {len(self.problems) - 200} more"
+        super().__init__(f"{head}:\n{body}{more}")
+
+
+class OutputError(GranularMpcError, OSError):
+    """An output folder or file cannot be written."""
+
+
+__all__ = [
+    "GranularMpcError", "ConfigError", "ModelFileError", "ModelError", "SimulationError",
+    "PlantDivergedError", "RobotFellError", "SolverError", "DataProblem", "DataFormatError",
+    "OutputError",
+]

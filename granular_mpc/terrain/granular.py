@@ -1,0 +1,97 @@
+"""Granular terrain: RFT closed form with solidified wedge, bulldozing and added mass.
+
+The patch law (see :mod:`.contact`) clips a stiff elastic trial force to the RFT flow
+force of the current direction of motion:
+
+* direction of motion ``u = v_c + e/τ`` (velocity plus elastic displacement over a short
+  time constant, so a resting foot still has a direction: the way it is pressed);
+* vertical and heading components within ``[min(0, F_RFT), max(0, F_RFT)]`` of the closed
+  form of :mod:`.closed_form` (sagittal slice, mirrored to the direction of motion);
+* lateral component within ``ζ[α_sh S₁ + (1 − e^{−|y_s|/λ}) α_y Q]`` (shear + bulldozing);
+* extraction: the closed form's sole elements do not lead when the foot rises, so the
+  only pull-down is RFT's own α_z < 0 on buried rear / top elements — no invented suction;
+* a finite layer: below ``layer_depth`` the foot meets rigid ground (stiff normal spring);
+* the solidified wedge's grains move with the foot: added mass m_a(z) and its momentum
+  flux ṁ_a v (Aguilar & Goldman 2016), added by :class:`.contact.CompiledContact`.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .closed_form import FootShape, lateral_capacity, sagittal_forces, wedge_area
+from .contact import LawOutput, clip, elastic_trial, from_basis, to_basis
+from .rft import Coefficients
+
+#: calibratable / tunable parameters of the granular law, in θ order
+GRANULAR_PARAMS = ("surface_height", "zeta", "phi_s", "bulldozing_length", "sole_shear_alpha",
+                   "added_mass_scale", "layer_depth", "contact_stiffness", "contact_damping",
+                   "direction_time_constant")
+
+
+def granular_param_values(cfg) -> list[float]:
+    return [cfg.surface_height, cfg.zeta, math.radians(cfg.phi_s_deg), cfg.bulldozing_length,
+            cfg.sole_shear_alpha, cfg.added_mass_scale, cfg.layer_depth, cfg.contact_stiffness,
+            cfg.contact_damping, cfg.direction_time_constant]
+
+
+def make_granular_law(cfg, slice_shape: FootShape, full_width: float):
+    """Return the patch law for a granular medium described by ``cfg``."""
+    coeffs = Coefficients.from_config(cfg.rft)
+    density = cfg.density  # bulk density: grains × packing fraction
+    area_w, height_w = wedge_area(slice_shape, math.radians(cfg.phi_s_deg))
+    floor_k = 2.0 * cfg.contact_stiffness
+
+    def law(o, g, e_prev, c0, th, dt) -> LawOutput:
+        K, D = th["contact_stiffness"], th["contact_damping"]
+        phi, zeta = th["phi_s"], th["zeta"]
+        f_tr, e = elastic_trial(K, D, g, e_prev, dt)
+        h, l = g.heading, g.lateral
+        tau = th["direction_time_constant"]
+        u = tuple(g.v_c[i] + e[i] / tau for i in range(3))
+        u_h, u_l, u_z = to_basis(u, h, l)
+        u_z = u_z - 1e-7          # at exact rest the medium is pressed, not pulled
+        sag = sagittal_forces(o, slice_shape, phi, g.depth, g.psi_c, u_h, u_z,
+                              coeffs=coeffs, zeta=zeta)
+        y_slip = (g.p_c[0] - c0[0]) * l[0] + (g.p_c[1] - c0[1]) * l[1]
+        cap_l = lateral_capacity(o, slice_shape, sag, u_l, u_z, y_slip, zeta=zeta,
+                                 bulldozing_length=th["bulldozing_length"],
+                                 shear_alpha=th["sole_shear_alpha"], full_width=full_width,
+                                 coeffs=coeffs)
+        t_h, t_l, t_z = to_basis(f_tr, h, l)
+        f_h = clip(o, t_h, o.fmin(0.0, sag.f_h), o.fmax(0.0, sag.f_h))
+        f_z = clip(o, t_z, o.fmin(0.0, sag.f_z), o.fmax(0.0, sag.f_z))
+        f_l = clip(o, t_l, -cap_l, cap_l)
+        e_h, e_l, e_z = to_basis(e, h, l)
+        tol = 1e-9
+
+        def settle(f, t, e_i):
+            return o.if_else(o.fabs(f - t) > tol * (1.0 + o.fabs(t)), -f / K, e_i)
+
+        e_new = from_basis((settle(f_h, t_h, e_h), settle(f_l, t_l, e_l), settle(f_z, t_z, e_z)),
+                           h, l)
+        # rigid floor under the layer
+        below = g.depth - th["layer_depth"]
+        f_floor = o.if_else(below > 0.0, o.fmax(floor_k * below - D * g.v_c[2], 0.0), 0.0)
+        force = from_basis((f_h, f_l, f_z + f_floor), h, l)
+        cap_z = sagittal_forces(o, slice_shape, phi, g.depth, g.psi_c, 0.0, -1.0,
+                                coeffs=coeffs, zeta=zeta).f_z
+        # submerged horizontal extent: where the free surface cuts the arc or the wedge
+        R = slice_shape.radius
+        dc = g.depth - R
+        cut_arc = R * o.sqrt(o.fmax(1.0 - (dc / R) ** 2, 0.0))
+        cut_wedge = o.fmax(sag.apex_depth, 0.0) / o.tan(phi)
+        half = o.if_else(-dc / R < o.cos(phi), cut_arc, cut_wedge)
+        area_h = 2.0 * half * slice_shape.width
+        # added mass of the solidified wedge, growing as its submerged part (∝ apex depth²)
+        frac = o.fmin(o.fmax(sag.apex_depth, 0.0) / height_w, 1.0)
+        m_full = th["added_mass_scale"] * density * slice_shape.width * area_w
+        m_a = m_full * frac * frac
+        dfrac = o.if_else(frac < 1.0, 1.0 / height_w, 0.0)
+        m_rate = m_full * 2.0 * frac * dfrac * (-g.v_c[2])
+        return LawOutput(force, e_new, cap_z, area_h, m_a, m_rate)
+
+    return law
+
+
+__all__ = ["GRANULAR_PARAMS", "granular_param_values", "make_granular_law"]
