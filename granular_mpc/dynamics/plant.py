@@ -14,7 +14,8 @@ Integrators (``sim.integrator``):
   second order: energy error bounded, O(dt²).
 * ``semi_implicit_euler``: v ← v + dt·a(q, v); q ← q ⊕ dt·v. First order, symplectic.
 
-Both integrate the configuration on its manifold (``pinocchio.integrate``).
+Both integrate the configuration on its manifold (``pinocchio.integrate``). Joints have
+end stops: beyond the URDF position limits a stiff spring–damper pushes back.
 """
 
 from __future__ import annotations
@@ -94,6 +95,15 @@ class Plant:
             kin[12:18] = pin.getFrameVelocity(model, pdata, fid, _LWA).vector
             contact.evaluate(i)
             d.fext[jid] = pin.Force(to_joint @ contact.feet[i].wrench_local)
+        # joint end stops: stiff spring-damper beyond the URDF position limits
+        qa = q[self._iq]
+        over = np.maximum(qa - self._q_hi, 0.0) + np.minimum(qa - self._q_lo, 0.0)
+        if over.any():
+            va = v[self._iv]
+            tau = d.tau.copy()
+            tau[self._iv] += np.where(over != 0.0, -self.STOP_K * over - self.STOP_D * va, 0.0)
+        else:
+            tau = d.tau
         w = d.base_wrench
         if w is None:
             d.fext[1] = _ZERO_FORCE
@@ -103,7 +113,27 @@ class Plant:
                 w = w(q, v)
             R = _quat_matrix(q[3:7])
             d.fext[1] = pin.Force(R.T @ w[0:3], R.T @ w[3:6])
-        return pin.aba(model, pdata, q, v, d.tau, d.fext)
+        return pin.aba(model, pdata, q, v, tau, d.fext)
+
+    #: joint end-stop stiffness [N·m/rad] and damping [N·m·s/rad]
+    STOP_K = 500.0
+    STOP_D = 5.0
+
+    @property
+    def _iq(self) -> np.ndarray:
+        return self.biped.idx_q
+
+    @property
+    def _iv(self) -> np.ndarray:
+        return self.biped.idx_v
+
+    @property
+    def _q_lo(self) -> np.ndarray:
+        return self.biped.position_limits[0]
+
+    @property
+    def _q_hi(self) -> np.ndarray:
+        return self.biped.position_limits[1]
 
     @property
     def _feet(self) -> tuple:

@@ -1,0 +1,344 @@
+"""The walking controller: gait + footholds + swing + MPC (≈40 Hz) + WBC (≈500 Hz).
+
+The controller owns its own ground model, built from the terrain the user chose for the
+controller (``controller.terrain``: ``plant`` or any terrain file) — on sand a user can run
+a rigid-assumption controller on a granular plant. It reads the plant's state (q, v) —
+perfect state estimation — and returns actuator torques.
+
+Solver status is data: every MPC and WBC tick appends a :class:`TickRecord`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from ..config import CommandConfig, ControllerConfig
+from ..robot.model import SIDES, Biped
+from ..terrain.base import TerrainModel
+from ..terrain.closed_form import FLOAT
+from ..terrain.contact import slice_geometry
+from .contact_model import GroundModel, ground_model
+from .gait import LEFT, CommandRamp, GaitSchedule, foothold, predict_com, predict_dcm
+from .mpc import CentroidalMPC, MPCData, MPCPlan, rot_z
+from .swing import cycloid
+from .wbc import FootPoints, WBCData, WBCReference, WholeBodyController
+
+
+@dataclass(frozen=True)
+class TickRecord:
+    """One controller tick (status as data, never printed)."""
+
+    t: float
+    kind: str               # "mpc" or "wbc"
+    status: str
+    solve_ms: float
+    total_ms: float
+    fallback: str = ""
+
+
+@dataclass
+class ControllerData:
+    mpc: MPCData
+    wbc: WBCData
+    ramp: CommandRamp
+    origin: np.ndarray                      # initial CoM (x, y) and yaw
+    liftoff: list = field(default_factory=lambda: [None, None])   # foot-frame origin at lift-off
+    target: list = field(default_factory=lambda: [None, None])    # current swing targets (sole)
+    was_stance: list = field(default_factory=lambda: [True, True])
+    plan: MPCPlan | None = None
+    next_mpc: float = 0.0
+    records: list = field(default_factory=list)
+    last_tau: np.ndarray | None = None
+
+    @property
+    def qp_failures(self) -> int:
+        return self.mpc.failures + self.wbc.failures
+
+
+@dataclass(frozen=True)
+class WalkingController:
+    """Controller model (immutable); changing state lives in :class:`ControllerData`."""
+
+    config: ControllerConfig
+    command: CommandConfig
+    biped: Biped
+    terrain: TerrainModel
+    ground: GroundModel
+    schedule: GaitSchedule
+    mpc: CentroidalMPC
+    wbc: WholeBodyController
+    inertia_B: np.ndarray
+    nominal_com_height: float
+
+    @classmethod
+    def build(cls, config: ControllerConfig, command: CommandConfig, biped: Biped,
+              terrain: TerrainModel) -> "WalkingController":
+        """Controller for ``biped`` believing the ground is ``terrain``."""
+        ground = ground_model(terrain, config.mpc)
+        q0 = biped.standing_configuration()
+        data = biped.create_data()
+        pin.ccrba(biped.model, data, q0, np.zeros(biped.model.nv))
+        inertia = np.array(data.Ig.inertia)
+        schedule = GaitSchedule(config.gait)
+        mpc = CentroidalMPC(config.mpc, biped.mass, inertia, biped.gravity, ground,
+                            n_points=biped.config.foot.slices,
+                            double_support=config.gait.double_support)
+        wbc = WholeBodyController(config.wbc, biped, ground, config.swing.kp, config.swing.kd,
+                                  n_points=biped.config.foot.slices)
+        return cls(config, command, biped, terrain, ground, schedule, mpc, wbc, inertia,
+                   float(biped.com(q0)[2] - biped.lowest_sole_point(q0).min()))
+
+    def new_data(self, q: np.ndarray, dt_wbc: float | None = None) -> ControllerData:
+        com = self.biped.com(q)
+        R = pin.Quaternion(q[6], q[3], q[4], q[5]).matrix()
+        yaw = math.atan2(R[1, 0], R[0, 0])
+        return ControllerData(self.mpc.new_data(), self.wbc.new_data(),
+                              CommandRamp(self.command, dt_wbc or 1.0 / self.config.wbc.rate_hz),
+                              np.array([com[0], com[1], yaw]))
+
+    # ------------------------------------------------------------------ helpers
+    @property
+    def omega(self) -> float:
+        """Natural frequency √(g/h) of the inverted pendulum over the stance foot [1/s]."""
+        return math.sqrt(self.biped.gravity / self.config.mpc.com_height)
+
+    @property
+    def foothold_config(self):
+        """Foothold settings with the step width this ground allows."""
+        return self.config.foothold.model_copy(update={"step_width": self.step_width})
+
+    @property
+    def step_width(self) -> float:
+        """Step width the controller uses [m]: the nominal one, narrowed where the ground
+        cannot push sideways enough. In the linear inverted pendulum the lateral force is
+        ``F_y/F_z ≈ (w/2)/h``, so ``w ≤ 2·margin·(F_l/F_z)_max·h``."""
+        f = self.config.foothold
+        return min(f.step_width,
+                   2.0 * f.lateral_margin * self.ground.lateral_ratio * self.config.mpc.com_height)
+
+    @property
+    def com_height_ref(self) -> float:
+        """CoM height above the undisturbed surface: the granular-aware controller keeps the
+        leg geometry of rigid walking by lowering the CoM by the expected sinkage."""
+        h = self.config.mpc.com_height
+        if self.ground.granular:
+            h -= self.ground.sinkage(self.biped.weight)
+        return h
+
+    def foot_points(self, pdata: pin.Data) -> tuple[FootPoints, FootPoints]:
+        """Contact points (lowest points of the sole slices) of both feet, in W."""
+        out = []
+        R_arc = self.biped.config.foot.radius
+        psi = self.biped.config.foot.half_angle
+        surf = self.ground.surface_height
+        for side in SIDES:
+            oMf = pdata.oMf[self.biped.foot_frame[side]]
+            p = oMf.translation
+            kin = list(p) + list(oMf.rotation.ravel("F")) + [0.0] * 6
+            pts = np.array([slice_geometry(FLOAT, kin, float(y), R_arc, psi, surf).p_c
+                            for y in self.biped.slice_offsets])
+            out.append(FootPoints(pts, pts - p))
+        return out[0], out[1]
+
+    def _stance_lever_points(self, fp: FootPoints, load: float) -> np.ndarray:
+        """Where a stance foot's points will be under ``load``: deeper by the sinkage still
+        to come (granular), else where they are."""
+        pts = fp.points.copy()
+        if self.ground.granular:
+            depth = self.ground.surface_height - pts[:, 2].mean()
+            extra = max(self.ground.sinkage(load) - depth, 0.0)
+            pts[:, 2] -= extra
+        return pts
+
+    def _landing_points(self, xy: np.ndarray, yaw: float, load: float) -> np.ndarray:
+        off = np.array([[0.0, y, 0.0] for y in self.biped.slice_offsets]) @ rot_z(yaw).T
+        z = self.ground.surface_height - self.ground.sinkage(load)
+        return np.array([[xy[0] + o[0], xy[1] + o[1], z] for o in off])
+
+    # ------------------------------------------------------------------ the tick
+    def compute(self, d: ControllerData, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Actuator torques [N·m] at time ``t`` for plant state (q, v)."""
+        t_start = time.perf_counter()
+        b = self.biped
+        pd = d.wbc.pin
+        pin.forwardKinematics(b.model, pd, q, v)
+        pin.updateFramePlacements(b.model, pd)
+        pin.centerOfMass(b.model, pd, q, v)
+        com, vcom = pd.com[0].copy(), pd.vcom[0].copy()
+        R = pin.Quaternion(q[6], q[3], q[4], q[5]).matrix()
+        rpy = pin.rpy.matrixToRpy(R)
+        omega_W = R @ v[3:6]
+        feet = self.foot_points(pd)
+        stance = self.schedule.contacts(t)
+        # lift-off bookkeeping
+        for i, side in enumerate(SIDES):
+            if d.was_stance[i] and not stance[i]:
+                d.liftoff[i] = pd.oMf[b.foot_frame[side]].translation.copy()
+                d.target[i] = None
+            d.was_stance[i] = stance[i]
+        p_ref, v_ref, a_ref = d.ramp.reference(t)
+        v_cmd = np.array([v_ref[0], v_ref[1], 0.0])
+        y_line = d.origin[1] + p_ref[1]
+        yaw_ref = d.origin[2]
+        mg = b.weight
+        # footholds of swinging feet (sole points) for their next touchdown, from the DCM
+        omega = self.omega
+        dcm = com[:2] + vcom[:2] / omega
+        st_feet = [i for i in range(2) if stance[i]]
+        p_st = (feet[st_feet[0]].points.mean(axis=0)[:2] if len(st_feet) == 1
+                else 0.5 * (feet[0].points.mean(axis=0)[:2] + feet[1].points.mean(axis=0)[:2]))
+        max_lat = self.ground.lateral_ratio * self.config.mpc.com_height
+        for i in range(2):
+            if stance[i]:
+                continue
+            t_td = self.schedule.time_to_touchdown(t, i)
+            phase = self.schedule.swing_phase(t, i)
+            if d.target[i] is None or phase < 0.8:
+                if len(st_feet) == 1:
+                    xi = predict_dcm(dcm, p_st, omega, t_td)
+                    c_td = predict_com(com[:2], vcom[:2], p_st, omega, t_td)
+                else:
+                    xi, c_td = dcm, com[:2]
+                xy = foothold(self.foothold_config, dcm=xi, v_cmd=v_cmd,
+                              stance_duration=self.schedule.stance_duration, omega=omega,
+                              lateral_sign=1.0 if i == LEFT else -1.0,
+                              y_error=com[1] - y_line, com_y=float(c_td[1]),
+                              max_lateral=max_lat)
+                z = self.ground.surface_height - self.config.swing.touchdown_depth
+                if self.ground.granular:
+                    z -= 0.5 * self.ground.sinkage(mg)
+                d.target[i] = np.array([xy[0], xy[1], z])
+        if self.schedule.standing(t):
+            return self._weight_shift(d, t, q, v, com, feet)
+        # ---------------- MPC
+        if d.plan is None or t >= d.next_mpc - 1e-9:
+            self._run_mpc(d, t, com, vcom, rpy, omega_W, feet, stance, v_cmd, y_line, yaw_ref)
+            d.next_mpc = t + 1.0 / self.config.mpc.rate_hz
+        plan = d.plan
+        dt = self.config.mpc.dt
+        k = int(np.clip((t - plan.t) // dt, 0, self.mpc.N - 1))
+        forces = plan.forces[k].copy()
+        # CoM reference: the MPC prediction at t (linear in time inside the step)
+        s = min(max((t - plan.t) / dt, 0.0), float(self.mpc.N))
+        prev = np.concatenate([[0, 0, 0], plan.states[0][3:6] * 0, [0, 0, 0], [0, 0, 0]])
+        _ = prev
+        k0 = min(int(s), self.mpc.N - 1)
+        xs = plan.states[k0]
+        com_ref = xs[3:6] + (s - k0 - 1.0) * dt * xs[9:12]
+        com_vel_ref = xs[9:12]
+        f_tot = forces.sum(axis=(0, 1))
+        com_acc = f_tot / b.mass + np.array([0.0, 0.0, -b.gravity])
+        sink_accel = np.zeros(2)
+        if self.ground.granular and self.mpc.N >= 3:
+            k1, k2 = min(k + 1, self.mpc.N - 1), min(k + 2, self.mpc.N - 1)
+            sink_accel = (plan.sinkage[k2] - 2.0 * plan.sinkage[k1] + plan.sinkage[k]) / dt ** 2
+        # swing references (foot-frame origin = sole point + R up)
+        Rarc = b.config.foot.radius
+        sp, sv, sa = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3))
+        for i in range(2):
+            if stance[i] or d.liftoff[i] is None:
+                continue
+            goal = d.target[i] + np.array([0.0, 0.0, Rarc])
+            sp[i], sv[i], sa[i] = cycloid(d.liftoff[i], goal, self.config.swing.height,
+                                          self.schedule.swing_phase(t, i),
+                                          self.schedule.swing_duration)
+        ref = WBCReference(com=com_ref, com_vel=com_vel_ref, com_acc=com_acc,
+                           R_trunk=rot_z(yaw_ref), omega=np.zeros(3), stance=stance,
+                           forces=forces, swing_pos=sp, swing_vel=sv, swing_acc=sa,
+                           sink_accel=sink_accel)
+        t_wbc = time.perf_counter()
+        tau = self.wbc.solve(d.wbc, q, v, ref, feet)
+        d.records.append(TickRecord(t, "wbc", d.wbc.last_status.value, d.wbc.last_ms,
+                                    (time.perf_counter() - t_wbc) * 1e3))
+        d.last_tau = tau
+        _ = t_start
+        return tau
+
+    def _weight_shift(self, d: ControllerData, t: float, q: np.ndarray, v: np.ndarray,
+                      com: np.ndarray, feet) -> np.ndarray:
+        """Initial double support: move the CoM (smoothly, WBC only) to where the periodic
+        gait's DCM starts: ``c = w/(1 + e^{ωT_st})`` inside the first stance (left) foot."""
+        b = self.biped
+        T = self.schedule.start
+        s = min(max(t / T, 0.0), 1.0) if T > 0 else 1.0
+        blend = 0.5 - 0.5 * math.cos(math.pi * s)
+        dblend = 0.5 * math.pi / T * math.sin(math.pi * s) if T > 0 else 0.0
+        e = math.exp(self.omega * self.schedule.stance_duration)
+        shift = 0.5 * self.step_width * (e - 1.0) / (e + 1.0)   # w/2 − c
+        y_l = feet[0].points[:, 1].mean()
+        y_r = feet[1].points[:, 1].mean()
+        mid = 0.5 * (y_l + y_r)
+        target = np.array([d.origin[0], mid + shift * np.sign(y_l - y_r),
+                           self.ground.surface_height + self.com_height_ref])
+        start = np.array([d.origin[0], d.origin[1], target[2]])
+        com_ref = start + blend * (target - start)
+        com_vel = dblend * (target - start)
+        share_l = float(np.clip((com_ref[1] - y_r) / max(y_l - y_r, 1e-6), 0.0, 1.0))
+        forces = np.zeros((2, self.mpc.n_points, 3))
+        forces[0, :, 2] = share_l * b.weight / self.mpc.n_points
+        forces[1, :, 2] = (1.0 - share_l) * b.weight / self.mpc.n_points
+        z3 = np.zeros((2, 3))
+        ref = WBCReference(com=com_ref, com_vel=com_vel, com_acc=np.zeros(3),
+                           R_trunk=rot_z(d.origin[2]), omega=np.zeros(3), stance=(True, True),
+                           forces=forces, swing_pos=z3, swing_vel=z3, swing_acc=z3,
+                           sink_accel=np.zeros(2), force_weight=1e-3)
+        t_wbc = time.perf_counter()
+        tau = self.wbc.solve(d.wbc, q, v, ref, feet)
+        d.records.append(TickRecord(t, "wbc", d.wbc.last_status.value, d.wbc.last_ms,
+                                    (time.perf_counter() - t_wbc) * 1e3))
+        d.last_tau = tau
+        return tau
+
+    def _run_mpc(self, d, t, com, vcom, rpy, omega_W, feet, stance, v_cmd, y_line, yaw_ref):
+        b = self.biped
+        cfg = self.config.mpc
+        N, dt = self.mpc.N, cfg.dt
+        mg = b.weight
+        t0 = time.perf_counter()
+        x0 = np.concatenate([rpy, com, omega_W, vcom])
+        x0[2] = yaw_ref + (x0[2] - yaw_ref + math.pi) % (2 * math.pi) - math.pi
+        x_ref = np.zeros((N, 12))
+        contacts = np.zeros((N, 2), dtype=bool)
+        load = np.zeros((N, 2))
+        points = np.zeros((N, 2, self.mpc.n_points, 3))
+        h_ref = self.ground.surface_height + self.com_height_ref
+        # expected footholds: current swing targets, then one stride further
+        stride = np.array([v_cmd[0] * self.schedule.period * 0.5, 0.0])
+        for k in range(N):
+            tk = t + (k + 1) * dt
+            tm = t + (k + 0.5) * dt
+            x_ref[k, 2] = yaw_ref
+            x_ref[k, 3] = com[0] + v_cmd[0] * (k + 1) * dt
+            blend = min(1.0, (k + 1) * dt / 0.4)
+            x_ref[k, 4] = com[1] + (y_line - com[1]) * blend
+            x_ref[k, 5] = h_ref
+            x_ref[k, 9] = v_cmd[0]
+            x_ref[k, 10] = v_cmd[1] + (y_line - com[1]) / 0.4 * (1.0 - blend)
+            c = self.schedule.contacts(tm)
+            contacts[k] = c
+            n_st = max(sum(c), 1)
+            for i in range(2):
+                if not c[i]:
+                    continue
+                load[k, i] = mg / n_st
+                if stance[i] and self.schedule.time_to_liftoff(t, i) >= (k + 0.5) * dt:
+                    points[k, i] = self._stance_lever_points(feet[i], load[k, i])
+                else:
+                    # lands within the horizon: its swing target, or one stride on
+                    xy = (d.target[i][:2] if d.target[i] is not None and not stance[i]
+                          else feet[i].points.mean(axis=0)[:2] + 2 * stride)
+                    points[k, i] = self._landing_points(xy, yaw_ref, load[k, i])
+            _ = tk
+        plan = self.mpc.solve(d.mpc, t=t, x0=x0, x_ref=x_ref, contacts=contacts,
+                              points=points, nominal_load=load)
+        d.plan = plan
+        d.records.append(TickRecord(t, "mpc", plan.status.value, plan.solve_ms,
+                                    (time.perf_counter() - t0) * 1e3, plan.fallback))
+
+
+__all__ = ["WalkingController", "ControllerData", "TickRecord"]

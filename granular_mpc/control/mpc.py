@@ -1,0 +1,307 @@
+"""Centroidal-plus-sinkage MPC: single rigid body, line-foot contact points, granular-aware
+force constraints, one persistent warm-started ProxSuite QP.
+
+State ``x = [Θ (roll, pitch, yaw), p_com, ω_W, v_com] ∈ R¹²`` (W frame). Dynamics (Di Carlo
+et al. 2018), linearised about the reference yaw ψ:
+
+    Θ̇ = R_z(ψ)ᵀ ω,  ṗ = v,  ω̇ = I_W⁻¹ Σ rᵢ × fᵢ,  v̇ = Σ fᵢ/m + g,   I_W = R_z I_B R_zᵀ
+
+with rᵢ = pᵢ − p_com,ref the lever of contact point i. Each foot contributes two contact
+points (the two patches across the sole width), so a stance foot can also give roll and
+yaw moments. Because the drift matrix A satisfies A² = 0 the discretisation is exact:
+``A_d = I + A dt``, ``B_d = B dt + A B dt²/2``, and the condensed matrices need no matrix
+powers: ``A_d^m = I + m A dt``.
+
+Sinkage: each stance foot's contact points sit at the predicted depth ``Z(F̄)`` of the
+controller's ground model (``F̄`` the nominal load), which sets the levers; after each
+solve the predicted sinkage of every stance foot, ``z_k = max_{j≤k} Z(f_z,j)`` (plastic),
+is reported with the plan. An optional cost ``w_s Σ (Z(F̄) + Z'(F̄)(f_z − F̄))²`` trades peak
+forces against sinkage. Force constraints come from :mod:`.contact_model`.
+
+The QP: ``min ½ UᵀHU + gᵀU`` s.t. per-point polytope rows and box bounds (swing feet fixed
+at zero force); size fixed per controller (N · feet-per-step · 2 points · 3).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..config import MPCConfig
+from .contact_model import GroundModel
+from .solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
+
+BIG = 1e20
+
+
+def skew(r: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+
+
+def rot_z(yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+@dataclass
+class MPCPlan:
+    """Result of one MPC tick (world frame, SI)."""
+
+    t: float
+    forces: np.ndarray          # (N, 2 feet, n_points, 3) planned contact forces [N]
+    states: np.ndarray          # (N, 12) predicted states after each step
+    contacts: np.ndarray        # (N, 2) planned contact flags
+    sinkage: np.ndarray         # (N, 2) predicted sinkage of each foot [m]
+    status: QPStatus
+    solve_ms: float
+    build_ms: float
+    fallback: str = ""          # "" or how the plan was obtained after a failure
+
+    def force_at(self, t: float, dt: float) -> np.ndarray:
+        """Planned forces (2, n_points, 3) at time ``t`` (zero-order hold per MPC step)."""
+        k = int(np.clip((t - self.t) // dt, 0, self.forces.shape[0] - 1))
+        return self.forces[k]
+
+
+@dataclass
+class MPCData:
+    """Changing part of the MPC: the persistent solver and the last plan."""
+
+    solver: ProxQPSolver
+    last: MPCPlan | None = None
+    failures: int = 0
+    solves: int = 0
+    records: list = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class CentroidalMPC:
+    """MPC model (immutable). Build a :class:`MPCData` with :meth:`new_data`."""
+
+    config: MPCConfig
+    mass: float
+    inertia_B: np.ndarray       # 3×3 centroidal rotational inertia in the trunk frame [kg m²]
+    gravity: float
+    ground: GroundModel
+    n_points: int = 2
+    double_support: bool = False
+
+    # ---------------------------------------------------------------- sizes
+    @property
+    def N(self) -> int:
+        return self.config.horizon
+
+    @property
+    def slots(self) -> int:
+        return 2 if self.double_support else 1
+
+    @property
+    def nu_step(self) -> int:
+        return self.slots * self.n_points * 3
+
+    @property
+    def nu(self) -> int:
+        return self.N * self.nu_step
+
+    @property
+    def rows_per_point(self) -> int:
+        return self.ground.polytope.G.shape[0]
+
+    @property
+    def n_in(self) -> int:
+        return self.N * self.slots * self.n_points * self.rows_per_point
+
+    def new_data(self) -> MPCData:
+        return MPCData(ProxQPSolver(self.nu, 0, self.n_in, box=True, eps_abs=1e-4, max_iter=100))
+
+    # ---------------------------------------------------------------- weights
+    def _q_diag(self) -> np.ndarray:
+        c = self.config
+        return np.concatenate([c.weights_orientation, c.weights_position,
+                               c.weights_angular_velocity, c.weights_velocity]).astype(float)
+
+    # ---------------------------------------------------------------- the tick
+    def solve(self, data: MPCData, *, t: float, x0: np.ndarray, x_ref: np.ndarray,
+              contacts: np.ndarray, points: np.ndarray, nominal_load: np.ndarray) -> MPCPlan:
+        """One MPC tick.
+
+        Args:
+            t: time of the tick [s].
+            x0: current state (12) [rad, m, rad/s, m/s].
+            x_ref: (N, 12) reference after each step.
+            contacts: (N, 2) bool, planned stance of (left, right) during each step.
+            points: (N, 2, n_points, 3) contact points of each foot at each step in W [m]
+                (used only where the foot is in stance).
+            nominal_load: (N, 2) expected vertical load of each foot [N] (for the sinkage
+                levers and the optional sinkage cost).
+        """
+        import time
+
+        t0 = time.perf_counter()
+        c = self.config
+        N, nx, nps = self.N, 12, self.n_points
+        dt = c.dt
+        yaw = float(x_ref[0, 2])
+        Rz = rot_z(yaw)
+        I_W_inv = Rz @ np.linalg.inv(self.inertia_B) @ Rz.T
+        A = np.zeros((nx, nx))
+        A[0:3, 6:9] = Rz.T
+        A[3:6, 9:12] = np.eye(3)
+        Adt = A * dt
+        # slot assignment: which foot each slot carries at each step
+        slot_foot = np.full((N, self.slots), -1, dtype=int)
+        for k in range(N):
+            feet = [f for f in (0, 1) if contacts[k, f]]
+            if self.double_support:
+                for f in feet:
+                    slot_foot[k, f] = f
+            elif feet:
+                # single support gait: one slot; if the plan has both (start-up), take the
+                # one with the larger nominal load
+                slot_foot[k, 0] = max(feet, key=lambda f: nominal_load[k, f])
+        Bd = np.zeros((N, nx, self.nu_step))
+        for k in range(N):
+            pc = x_ref[k, 3:6]
+            for s in range(self.slots):
+                f = slot_foot[k, s]
+                if f < 0:
+                    continue
+                for i in range(nps):
+                    col = (s * nps + i) * 3
+                    r = points[k, f, i] - pc
+                    Bc = np.zeros((nx, 3))
+                    Bc[6:9] = I_W_inv @ skew(r)
+                    Bc[9:12] = np.eye(3) / self.mass
+                    Bd[k, :, col:col + 3] = Bc * dt + A @ Bc * (0.5 * dt * dt)
+        E = np.einsum("ij,kjl->kil", Adt, Bd)          # (A dt) B_d,j
+        cvec = np.zeros(nx)
+        cvec[11] = -self.gravity
+        cd = cvec * dt + A @ cvec * (0.5 * dt * dt)
+        Acd = Adt @ cd
+        Gam = np.zeros((N * nx, self.nu))
+        free = np.zeros(N * nx)
+        for k in range(1, N + 1):
+            rows = slice((k - 1) * nx, k * nx)
+            for j in range(k):
+                Gam[rows, j * self.nu_step:(j + 1) * self.nu_step] = Bd[j] + (k - 1 - j) * E[j]
+            free[rows] = x0 + k * (Adt @ x0) + k * cd + 0.5 * k * (k - 1) * Acd
+        err = free - self._wrap_reference(x_ref, x0).ravel()
+        q = np.tile(self._q_diag(), N)
+        QG = Gam * q[:, None]
+        H = Gam.T @ QG
+        g = QG.T @ err
+        H[np.diag_indices_from(H)] += c.weight_force
+        # optional sinkage cost on the normal forces
+        if c.weight_sinkage > 0.0 and self.ground.granular:
+            for k in range(N):
+                for s in range(self.slots):
+                    f = slot_foot[k, s]
+                    if f < 0:
+                        continue
+                    F0 = nominal_load[k, f] / nps
+                    z0 = self.ground.sinkage(nominal_load[k, f])
+                    dz = self.ground.sinkage_slope(nominal_load[k, f])
+                    for i in range(nps):
+                        jz = k * self.nu_step + (s * nps + i) * 3 + 2
+                        # (z0 + dz·nps·(f_z − F0))² per point
+                        a = dz * nps
+                        H[jz, jz] += 2.0 * c.weight_sinkage * a * a
+                        g[jz] += 2.0 * c.weight_sinkage * a * (z0 - a * F0)
+        H = 0.5 * (H + H.T)
+        # constraints
+        poly = self.ground.polytope.scaled(1.0 / nps)
+        Gl = poly.G
+        nr = Gl.shape[0]
+        C = np.zeros((self.n_in, self.nu))
+        u = np.zeros(self.n_in)
+        lb = np.zeros(self.nu)
+        ub = np.zeros(self.nu)
+        row = 0
+        for k in range(N):
+            for s in range(self.slots):
+                f = slot_foot[k, s]
+                for i in range(nps):
+                    col = k * self.nu_step + (s * nps + i) * 3
+                    C[row:row + nr, col:col + 3] = Gl @ Rz.T
+                    u[row:row + nr] = poly.h
+                    if f >= 0:
+                        lb[col:col + 2] = -BIG
+                        ub[col:col + 2] = BIG
+                        ub[col + 2] = poly.f_max
+                    row += nr
+        l = np.full(self.n_in, -BIG)
+        build_ms = (time.perf_counter() - t0) * 1e3
+        sol = data.solver.solve(QPProblem(H, g, None, None, C, l, u, lb, ub))
+        data.solves += 1
+        fallback = ""
+        if sol.status.ok:
+            U = sol.x
+        else:
+            data.failures += 1
+            U, fallback = self._fallback(data, t, slot_foot, nominal_load)
+        forces = np.zeros((N, 2, nps, 3))
+        Ur = U.reshape(N, self.slots, nps, 3)
+        for k in range(N):
+            for s in range(self.slots):
+                f = slot_foot[k, s]
+                if f >= 0:
+                    forces[k, f] = Ur[k, s]
+        states = (free + Gam @ U).reshape(N, nx)
+        sink = self._predicted_sinkage(forces, contacts)
+        plan = MPCPlan(t, forces, states, contacts.copy(), sink, sol.status, sol.solve_ms,
+                       build_ms, fallback)
+        data.last = plan
+        return plan
+
+    # ---------------------------------------------------------------- helpers
+    def _wrap_reference(self, x_ref: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        """Reference yaw unwrapped next to the current yaw (no 2π jumps in the error)."""
+        out = x_ref.copy()
+        out[:, 2] = x0[2] + (out[:, 2] - x0[2] + math.pi) % (2.0 * math.pi) - math.pi
+        return out
+
+    def _predicted_sinkage(self, forces: np.ndarray, contacts: np.ndarray) -> np.ndarray:
+        N = forces.shape[0]
+        out = np.zeros((N, 2))
+        for f in (0, 1):
+            deepest = 0.0
+            for k in range(N):
+                if not contacts[k, f]:
+                    deepest = 0.0
+                    continue
+                deepest = max(deepest, self.ground.sinkage(float(forces[k, f, :, 2].sum())))
+                out[k, f] = deepest
+        return out
+
+    def _fallback(self, data: MPCData, t: float, slot_foot: np.ndarray,
+                  nominal_load: np.ndarray) -> tuple[np.ndarray, str]:
+        """Shifted previous plan if it covers now, else nominal (gravity-sharing) forces."""
+        N, nps = self.N, self.n_points
+        U = np.zeros((N, self.slots, nps, 3))
+        last = data.last
+        if last is not None and last.status.ok:
+            shift = int(round((t - last.t) / self.config.dt))
+            ok = True
+            for k in range(N):
+                src = k + shift
+                for s in range(self.slots):
+                    f = slot_foot[k, s]
+                    if f < 0:
+                        continue
+                    if src < N and last.contacts[src, f]:
+                        U[k, s] = last.forces[src, f]
+                    else:
+                        ok = False
+                        U[k, s, :, 2] = nominal_load[k, f] / nps
+            return U.ravel(), "shifted" if ok else "shifted+nominal"
+        for k in range(N):
+            for s in range(self.slots):
+                f = slot_foot[k, s]
+                if f >= 0:
+                    U[k, s, :, 2] = nominal_load[k, f] / nps
+        return U.ravel(), "nominal"
+
+
+__all__ = ["CentroidalMPC", "MPCData", "MPCPlan", "rot_z", "skew"]

@@ -1,0 +1,205 @@
+"""Our QP problem / solution types and a persistent, warm-started ProxSuite dense solver.
+
+    minimise ½ xᵀ H x + gᵀ x   s.t.   A x = b,   l ≤ C x ≤ u,   lb ≤ x ≤ ub
+
+No ProxSuite type leaves this module: callers build a :class:`QPProblem`, get a
+:class:`QPSolution` whose :attr:`~QPSolution.status` is a :class:`QPStatus`. The solver
+object keeps one ProxSuite ``dense.QP`` alive for a fixed problem size, ``update``-s it each
+tick and warm-starts from the previous result (maintainers' advice, proxsuite issues 226 and
+333). Warm start is switched on only after a first successful solve: with proxsuite 0.8,
+``WARM_START_WITH_PREVIOUS_RESULT`` set between ``init`` and the first ``solve`` then
+``update`` + ``solve`` crashes the process.
+"""
+
+from __future__ import annotations
+
+import enum
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...exceptions import SolverError
+
+
+class QPStatus(enum.Enum):
+    """Outcome of one solve."""
+
+    SOLVED = "solved"
+    MAX_ITER = "max_iter"           # stopped before reaching the tolerance
+    PRIMAL_INFEASIBLE = "primal_infeasible"
+    DUAL_INFEASIBLE = "dual_infeasible"
+    NON_FINITE = "non_finite"       # the data or the result contained NaN/inf
+    FAILED = "failed"
+
+    @property
+    def ok(self) -> bool:
+        return self is QPStatus.SOLVED
+
+
+@dataclass
+class QPProblem:
+    """A dense convex QP (all arrays float64; empty blocks may be None)."""
+
+    H: np.ndarray
+    g: np.ndarray
+    A: np.ndarray | None = None
+    b: np.ndarray | None = None
+    C: np.ndarray | None = None
+    l: np.ndarray | None = None
+    u: np.ndarray | None = None
+    lb: np.ndarray | None = None
+    ub: np.ndarray | None = None
+
+    @property
+    def n(self) -> int:
+        return self.H.shape[0]
+
+    @property
+    def n_eq(self) -> int:
+        return 0 if self.A is None else self.A.shape[0]
+
+    @property
+    def n_in(self) -> int:
+        return 0 if self.C is None else self.C.shape[0]
+
+    def check(self) -> None:
+        n = self.n
+        if self.H.shape != (n, n) or self.g.shape != (n,):
+            raise SolverError(f"QP shapes: H {self.H.shape}, g {self.g.shape}")
+        for name in ("H", "g", "A", "b", "C"):
+            arr = getattr(self, name)
+            if arr is not None and not np.isfinite(arr).all():
+                raise SolverError(f"QP data {name} is not finite")
+
+    def objective(self, x: np.ndarray) -> float:
+        return float(0.5 * x @ self.H @ x + self.g @ x)
+
+    def violation(self, x: np.ndarray) -> float:
+        """Largest constraint violation of ``x``."""
+        worst = 0.0
+        if self.A is not None and self.A.size:
+            worst = max(worst, float(np.abs(self.A @ x - self.b).max()))
+        if self.C is not None and self.C.size:
+            cx = self.C @ x
+            worst = max(worst, float(np.max(self.l - cx, initial=0.0)),
+                        float(np.max(cx - self.u, initial=0.0)))
+        if self.lb is not None:
+            worst = max(worst, float(np.max(self.lb - x, initial=0.0)),
+                        float(np.max(x - self.ub, initial=0.0)))
+        return worst
+
+
+@dataclass
+class QPSolution:
+    x: np.ndarray
+    status: QPStatus
+    iterations: int = 0
+    solve_ms: float = 0.0
+    objective: float = float("nan")
+    y: np.ndarray | None = None     # equality multipliers
+    z: np.ndarray | None = None     # inequality multipliers
+    retried: bool = False           # the warm-started attempt failed, a cold one was made
+
+
+@dataclass
+class ProxQPSolver:
+    """Persistent dense ProxSuite solver for problems of one size.
+
+    Args:
+        n, n_eq, n_in: fixed dimensions; ``box``: whether box bounds lb ≤ x ≤ ub are used.
+        eps_abs: absolute tolerance; ``max_iter``: iteration cap per solve.
+    """
+
+    n: int
+    n_eq: int
+    n_in: int
+    box: bool = False
+    eps_abs: float = 1e-6
+    max_iter: int = 200
+    _qp: object = field(default=None, repr=False)
+    _initialised: bool = field(default=False, repr=False)
+    _warm: bool = field(default=False, repr=False)
+
+    def __post_init__(self) -> None:
+        import proxsuite
+
+        self._px = proxsuite
+        self._reset()
+
+    def solve(self, p: QPProblem) -> QPSolution:
+        """Solve ``p`` (same dimensions every call); never raises for a numerical failure."""
+        if (p.n, p.n_eq, p.n_in) != (self.n, self.n_eq, self.n_in):
+            raise SolverError(f"QP size {(p.n, p.n_eq, p.n_in)} differs from the solver's "
+                              f"{(self.n, self.n_eq, self.n_in)}")
+        for name in ("H", "g", "A", "b", "C", "l", "u"):
+            arr = getattr(p, name)
+            if arr is not None and not np.all(np.isfinite(arr) | (np.isinf(arr) & (name in "lu"))):
+                return QPSolution(np.zeros(self.n), QPStatus.NON_FINITE)
+        args = [p.H, p.g, p.A, p.b, p.C, p.l, p.u]
+        if self.box:
+            args += [p.lb, p.ub]
+        t0 = time.perf_counter()
+        warm = self._warm
+        sol = self._attempt(args)
+        retried = False
+        if not sol.status.ok and warm:
+            # a warm start from a very different previous problem can make ProxSuite stop
+            # early (or declare infeasibility): retry once from scratch
+            self._reset()
+            sol = self._attempt(args)
+            retried = True
+        sol.solve_ms = (time.perf_counter() - t0) * 1e3
+        sol.retried = retried
+        if not sol.status.ok:
+            self._reset()
+        elif not self._warm:
+            # safe only now (see module docstring)
+            self._qp.settings.initial_guess = \
+                self._px.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+            self._warm = True
+        return sol
+
+    def _attempt(self, args) -> QPSolution:
+        try:
+            if not self._initialised:
+                self._qp.init(*args)
+                self._initialised = True
+            else:
+                self._qp.update(*args)
+            self._qp.solve()
+        except (ValueError, RuntimeError):  # ProxSuite's own errors on bad data
+            self._reset()
+            return QPSolution(np.zeros(self.n), QPStatus.FAILED)
+        r = self._qp.results
+        status = self._status(r.info.status)
+        x = np.array(r.x)
+        if not np.isfinite(x).all():
+            status = QPStatus.NON_FINITE
+        return QPSolution(x, status, int(r.info.iter), 0.0, float(r.info.objValue),
+                          np.array(r.y), np.array(r.z))
+
+    def _status(self, s) -> QPStatus:
+        out = self._px.proxqp.QPSolverOutput
+        table = {out.PROXQP_SOLVED: QPStatus.SOLVED,
+                 out.PROXQP_MAX_ITER_REACHED: QPStatus.MAX_ITER,
+                 out.PROXQP_PRIMAL_INFEASIBLE: QPStatus.PRIMAL_INFEASIBLE,
+                 out.PROXQP_DUAL_INFEASIBLE: QPStatus.DUAL_INFEASIBLE}
+        return table.get(s, QPStatus.FAILED)
+
+    def _reset(self) -> None:
+        """A fresh ProxSuite object, cold-started (after a failure a bad previous result is
+        no warm start)."""
+        px = self._px
+        self._qp = px.proxqp.dense.QP(self.n, self.n_eq, self.n_in, self.box)
+        s = self._qp.settings
+        s.eps_abs = self.eps_abs
+        s.eps_rel = 0.0
+        s.max_iter = self.max_iter
+        s.verbose = False
+        s.initial_guess = px.proxqp.InitialGuess.NO_INITIAL_GUESS
+        self._initialised = False
+        self._warm = False
+
+
+__all__ = ["QPStatus", "QPProblem", "QPSolution", "ProxQPSolver"]

@@ -1,0 +1,40 @@
+"""Swing-foot trajectory: a cycloid with a fixed apex, as in the paper's gait.
+
+With phase s ∈ [0, 1] and φ = 2πs, the horizontal progress is the cycloid
+``c(s) = (φ − sin φ)/(2π)`` (zero velocity and acceleration at both ends) and the height
+``z = z0 + (z1 − z0)·c(s) + h·(1 − cos φ)/2``, so the foot lifts and lands vertically at rest.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def cycloid(p0: np.ndarray, p1: np.ndarray, height: float, phase: float,
+            duration: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position [m], velocity [m/s] and acceleration [m/s²] of the swing foot in W.
+
+    Args:
+        p0: lift-off point; p1: touchdown target (both in W) [m].
+        height: apex above the straight line p0 → p1 [m].
+        phase: swing progress in [0, 1]; duration: swing duration [s].
+    """
+    s = min(max(phase, 0.0), 1.0)
+    phi = 2.0 * math.pi * s
+    w = 2.0 * math.pi / duration          # dφ/dt
+    c = (phi - math.sin(phi)) / (2.0 * math.pi)
+    dc = (1.0 - math.cos(phi)) / (2.0 * math.pi) * w
+    ddc = math.sin(phi) / (2.0 * math.pi) * w * w
+    delta = p1 - p0
+    pos = p0 + delta * c
+    vel = delta * dc
+    acc = delta * ddc
+    pos[2] += height * (1.0 - math.cos(phi)) / 2.0
+    vel[2] += height * math.sin(phi) / 2.0 * w
+    acc[2] += height * math.cos(phi) / 2.0 * w * w
+    return pos, vel, acc
+
+
+__all__ = ["cycloid"]

@@ -1,0 +1,204 @@
+"""Stance segmentation, phase resampling, bands and RMSE with trial bootstrap."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from granular_mpc.analysis import (leg_joint_roles, phase_bands, phase_grid, resample_by_phase,
+                                   resample_stances, rmse_table, role_column, segment_stances,
+                                   stance_phase)
+from synthetic_log import interp_segment, make_log
+
+
+# --------------------------------------------------------------------------- segmentation
+@pytest.mark.parametrize("gap_rows", [0, 5])
+def test_segmentation_counts_and_boundaries(gap_rows):
+    L = make_log(7, stance_rows=51, gap_rows=gap_rows, first_side="right")
+    segs = segment_stances(L.df)
+    assert len(segs) == 7
+    assert list(segs.side) == [s for s, _, _ in L.segments]
+    assert list(segs.row_start) == [a for _, a, _ in L.segments]
+    assert list(segs.row_stop) == [b for _, _, b in L.segments]
+    assert (segs.n_samples == 51).all() and segs.complete.all()
+    assert np.allclose(segs.duration_s, 50 * L.dt)
+    assert list(segs.stance_id) == list(range(7))
+
+
+def test_segments_touching_the_log_ends_are_incomplete():
+    L = make_log(5, lead_rows=0)
+    segs = segment_stances(L.df)
+    assert len(segs) == 3                     # first and last stance cut by the recording
+    assert list(segs.row_start) == [a for _, a, _ in L.segments[1:-1]]
+    full = segment_stances(L.df, include_incomplete=True)
+    assert len(full) == 5 and list(full.complete) == [False, True, True, True, False]
+
+
+def test_contact_flicker_splits_and_min_samples_filters():
+    df = make_log(3).df.copy()
+    side, a, b = "right", 111, 212                   # second stance of make_log(3)
+    assert (df.stance.iloc[a:b] == side).all()
+    df.loc[a + 2, "right_contact"] = 0               # 2-row run, then the rest
+    segs = segment_stances(df)
+    assert len(segs) == 3                            # the 2-row run is dropped
+    assert segs.row_start.iloc[1] == a + 3
+    segs_nc = segment_stances(df, require_contact=False)
+    assert segs_nc.row_start.iloc[1] == a
+
+
+def test_segmentation_rejects_bad_time():
+    df = make_log(3).df.copy()
+    df.loc[50, "time"] = df.loc[49, "time"]
+    with pytest.raises(ValueError, match="row 50"):
+        segment_stances(df)
+    with pytest.raises(ValueError, match="stance"):
+        segment_stances(df.drop(columns="stance"))
+
+
+def test_stance_phase_columns():
+    L = make_log(4)
+    ph = stance_phase(L.df)
+    assert len(ph) == sum(b - a for _, a, b in L.segments)
+    for sid, g in ph.groupby("stance_id"):
+        assert g.phase_pct.iloc[0] == 0.0 and g.phase_pct.iloc[-1] == pytest.approx(100.0)
+        assert np.all(np.diff(g.phase_pct) > 0)
+    assert "phase_pct" not in L.df.columns          # the input is not modified
+
+
+# --------------------------------------------------------------------------- roles, resampling
+def test_roles():
+    assert role_column("q_swing_knee", "left") == "q_right_knee"
+    assert role_column("q_stance_knee", "left") == "q_left_knee"
+    assert role_column("stance_grf_z", "right") == "right_grf_z"
+    assert role_column("grf_z", "right") == "grf_z"
+    with pytest.raises(ValueError):
+        role_column("q_stance_knee", "none")
+    swing, stance = leg_joint_roles(make_log(2).df.columns)
+    assert swing == ["q_swing_hip_abd", "q_swing_hip_pitch", "q_swing_knee"]
+    assert stance == ["q_stance_hip_abd", "q_stance_hip_pitch", "q_stance_knee"]
+
+
+def test_resample_stances_against_numpy():
+    L = make_log(5, stance_rows=73)
+    grid = phase_grid(51)
+    res = resample_stances(L.df, ["q_stance_knee", "q_swing_hip_pitch", "grf_z"], n_phase=51)
+    assert len(res) == 5 * 51
+    for k, (side, a, b) in enumerate(L.segments):
+        r = res[res.stance_id == k]
+        other = "right" if side == "left" else "left"
+        assert (r.side == side).all()
+        assert np.allclose(r.q_stance_knee, interp_segment(L.df, f"q_{side}_knee", a, b, grid))
+        assert np.allclose(r.q_swing_hip_pitch,
+                           interp_segment(L.df, f"q_{other}_hip_pitch", a, b, grid))
+        assert np.allclose(r.grf_z, interp_segment(L.df, f"{side}_grf_z", a, b, grid))
+    with pytest.raises(ValueError, match="not in the log"):
+        resample_stances(L.df, ["q_stance_ankle"])
+
+
+def test_resample_by_phase_no_extrapolation():
+    df = pd.DataFrame({"stance_id": [0, 0, 0, 1, 1], "phase_pct": [0, 50, 100, 20, 80],
+                       "y": [0.0, 1.0, 0.0, 2.0, 4.0], "side": ["left"] * 3 + ["right"] * 2})
+    res = resample_by_phase(df, ["y"], n_phase=11, keep=["side"])
+    a = res[res.stance_id == 0].y.to_numpy()
+    assert np.allclose(a, np.interp(np.linspace(0, 100, 11), [0, 50, 100], [0, 1, 0]))
+    b = res[res.stance_id == 1]
+    assert b.y.iloc[:2].isna().all() and b.y.iloc[-2:].isna().all()
+    assert b.y.iloc[5] == pytest.approx(3.0)
+    assert list(b.side.unique()) == ["right"]
+
+
+def test_phase_bands_against_numpy():
+    L = make_log(6)
+    grid = phase_grid(101)
+    res = resample_stances(L.df, ["q_stance_hip_pitch"])
+    bands = phase_bands(res, ["q_stance_hip_pitch"])
+    stack = np.vstack([interp_segment(L.df, f"q_{s}_hip_pitch", a, b, grid)
+                       for s, a, b in L.segments])
+    assert np.allclose(bands["mean"], stack.mean(axis=0))
+    assert np.allclose(bands["sd"], stack.std(axis=0, ddof=1))
+    assert (bands["n"] == 6).all()
+    assert np.allclose(bands["median"], np.median(stack, axis=0))
+
+
+# --------------------------------------------------------------------------- RMSE
+def _trials(n_trials=6, n=200, speeds=(0.1, 0.3), seed=0):
+    rng = np.random.default_rng(seed)
+    rows = []
+    for v in speeds:
+        for k in range(n_trials):
+            ph = np.linspace(0, 100, n)
+            rows.append(pd.DataFrame({"trial": f"v{v}-t{k}", "commanded_speed_mps": v,
+                                      "phase_pct": ph, "a": rng.normal(size=n),
+                                      "b": np.sin(ph / 10.0)}))
+    return pd.concat(rows, ignore_index=True)
+
+
+def test_rmse_constant_offset_in_every_bin():
+    meas = _trials()
+    pred = meas.copy()
+    pred["a"] += 0.7
+    pred["b"] -= 0.25
+    tab = rmse_table(pred, meas, ["a", "b"], phase_bins=5, n_boot=200)
+    assert len(tab) == 2 * 5 * 2                   # speeds × bins × channels
+    assert np.allclose(tab[tab.channel == "a"].rmse, 0.7)
+    assert np.allclose(tab[tab.channel == "b"].rmse, 0.25)
+    assert np.allclose(tab[tab.channel == "b"].bias, -0.25)
+    # every bootstrap replicate has the same RMSE → a zero-width interval at c
+    assert np.allclose(tab[tab.channel == "a"].ci_lo, 0.7)
+    assert np.allclose(tab[tab.channel == "a"].ci_hi, 0.7)
+    assert (tab.n_trials == 6).all()
+    # bins [0,20) … [80,100]: 200 samples per trial on linspace(0,100) → 40 per bin
+    assert (tab.n_samples == 6 * 40).all()
+    assert list(tab.phase_bin.unique()) == ["0-20", "20-40", "40-60", "60-80", "80-100"]
+
+
+def test_rmse_whole_stance_and_nan_handling():
+    meas = _trials(n_trials=3, speeds=(0.2,))
+    pred = meas.copy()
+    pred["a"] = meas["a"] + 2.0
+    pred.loc[:9, "a"] = np.nan                    # non-finite samples are left out
+    tab = rmse_table(pred, meas, ["a"], phase_bins=None, group_cols=(), n_boot=0)
+    assert len(tab) == 1 and tab.phase_bin.iloc[0] == "all"
+    assert tab.rmse.iloc[0] == pytest.approx(2.0)
+    assert tab.n_samples.iloc[0] == len(meas) - 10
+    assert np.isnan(tab.ci_lo.iloc[0])             # n_boot = 0: no interval
+
+
+def test_bootstrap_contains_truth_and_is_seeded():
+    sigma = 0.5
+    meas = _trials(n_trials=30, n=100, speeds=(0.2,), seed=3)
+    pred = meas.copy()
+    rng = np.random.default_rng(11)
+    # trial-level bias plus sample noise: true RMSE² = σ² + τ²
+    tau_b = 0.2
+    bias = {tr: rng.normal(0.0, tau_b) for tr in meas.trial.unique()}
+    pred["a"] = meas["a"] + meas.trial.map(bias) + rng.normal(0.0, sigma, len(meas))
+    truth = np.sqrt(sigma ** 2 + tau_b ** 2)
+    t1 = rmse_table(pred, meas, ["a"], phase_bins=None, n_boot=2000, seed=7)
+    t2 = rmse_table(pred, meas, ["a"], phase_bins=None, n_boot=2000, seed=7)
+    t3 = rmse_table(pred, meas, ["a"], phase_bins=None, n_boot=2000, seed=8)
+    lo, hi = t1.ci_lo.iloc[0], t1.ci_hi.iloc[0]
+    assert lo < truth < hi
+    assert lo < t1.rmse.iloc[0] < hi
+    assert (t1[["ci_lo", "ci_hi"]].to_numpy() == t2[["ci_lo", "ci_hi"]].to_numpy()).all()
+    assert not np.allclose(t1[["ci_lo", "ci_hi"]].to_numpy(), t3[["ci_lo", "ci_hi"]].to_numpy())
+
+
+def test_single_trial_has_no_interval():
+    meas = _trials(n_trials=1, speeds=(0.2,))
+    pred = meas.assign(a=meas.a + 1.0)
+    tab = rmse_table(pred, meas, ["a"], phase_bins=None)
+    assert tab.rmse.iloc[0] == pytest.approx(1.0)
+    assert np.isnan(tab.ci_lo.iloc[0]) and np.isnan(tab.ci_hi.iloc[0])
+
+
+def test_rmse_rejects_misaligned_inputs():
+    meas = _trials(n_trials=2, speeds=(0.2,))
+    pred = meas.copy()
+    with pytest.raises(ValueError, match="row-aligned"):
+        rmse_table(pred.iloc[:-1], meas, ["a"])
+    shuffled = pred.sample(frac=1.0, random_state=0).reset_index(drop=True)
+    with pytest.raises(ValueError, match="differs"):
+        rmse_table(shuffled, meas, ["a"])
+    with pytest.raises(ValueError, match="lacks"):
+        rmse_table(pred, meas.drop(columns="trial"), ["a"])
