@@ -491,6 +491,7 @@ class GaitConfig(StrictModel):
     swing_fraction: float = Field(0.5, gt=0.0, le=0.5,
                                   description="Swing share of the cycle per leg; 0.5 = no double support.")
     weight_shift: NonNegFloat = Field(0.5, le=5.0, description="Initial double support shifting the CoM toward the first stance foot [s].")
+    load_transfer: Union[Literal["auto"], NonNegFloat] = Field("auto", description="Double support at each touchdown [s]; 'auto': the time a foot needs to sink to the depth that bears the robot's weight at mpc.max_sink_rate (0 on rigid ground).")
 
     @property
     def double_support(self) -> bool:
@@ -511,6 +512,8 @@ class FootholdConfig(StrictModel):
     lateral_margin: float = Field(0.6, gt=0.0, le=1.0, description="Step width is narrowed so the gait's lateral force stays within this share of the ground's lateral capacity [-].")
     k_velocity: float = Field(0.0, ge=-0.9, le=2.0, description="Extra scale of the speed offset [-].")
     k_position: NonNegFloat = Field(0.5, description="Walking-line correction: foothold shift per metre off the line per second of stance [1/s].")
+    k_speed_integral: NonNegFloat = Field(0.5, description="Integral gain on the forward speed error (after the speed ramp) added to the speed used for footholds [1/s].")
+    max_speed_correction: NonNegFloat = Field(0.3, description="Bound on that integral correction [m/s].")
     max_step: PositiveFloat = Field(0.25, description="Largest foothold offset from the capture point, each axis [m].")
 
 
@@ -525,18 +528,22 @@ class MPCConfig(StrictModel):
     weight_force: NonNegFloat = Field(1e-5, description="Force regularisation [1/N²].")
     weight_sinkage: NonNegFloat = Field(0.0, description="Penalty on predicted sinkage [1/m²].")
     max_sinkage: PositiveFloat = Field(0.04, description="Sinkage allowed by the force constraints [m].")
+    max_sink_rate: PositiveFloat = Field(0.6, description="Fastest planned sinkage of a loading foot [m/s]: the normal force may only grow as fast as the foot sinks into capacity.")
     friction: PositiveFloat = Field(0.6, description="Friction coefficient of the rigid-ground model [-].")
     max_normal_force: PositiveFloat = Field(300.0, description="Upper bound on the normal force per foot [N].")
     com_height: PositiveFloat = Field(0.41, description="Desired CoM height above the undisturbed surface [m].")
 
 
 class WBCConfig(StrictModel):
+    """Whole-body QP weights and task gains (see control/wbc.py)."""
+
     rate_hz: float = Field(500.0, gt=0.0, le=5000.0, description="WBC rate [Hz] (torques held between ticks).")
-    w_orientation: NonNegFloat = 50.0
+    w_orientation: list[NonNegFloat] = Field([10.0, 10.0, 2.0], min_length=3, max_length=3,
+                                             description="Trunk roll, pitch, yaw task weights. Yaw is weak: without a hip-yaw joint the trunk's yaw is the stance foot's, which only rotational slip can change.")
     w_com: NonNegFloat = 20.0
     w_swing: NonNegFloat = 100.0
     w_contact: NonNegFloat = 1000.0
-    w_force: NonNegFloat = 0.01
+    w_force: NonNegFloat = Field(10.0, description="Weight on tracking the MPC forces [1/N²].")
     w_regularisation: NonNegFloat = 1e-4
     kp_orientation: NonNegFloat = 300.0
     kd_orientation: NonNegFloat = 30.0
@@ -559,3 +566,160 @@ class CommandConfig(StrictModel):
     max_acceleration: PositiveFloat = Field(0.5, description="Ramp acceleration limit [m/s²] (Ruckig).")
     max_jerk: PositiveFloat = Field(2.0, description="Ramp jerk limit [m/s³] (Ruckig).")
     start_delay: NonNegFloat = Field(0.8, description="Time before the speed ramp starts (weight shift, then stepping in place) [s].")
+
+
+# --------------------------------------------------------------------------------------
+# Scenarios (sim/*.yaml): what `granular-mpc run` and `granular-mpc sweep` read.
+# Loading (names → inlined files, --set overrides): granular_mpc/scenario.py.
+# --------------------------------------------------------------------------------------
+
+from typing import Optional  # noqa: E402  (typing.Union, not PEP 604: see _fields_of)
+
+Vector3 = Annotated[list[FiniteFloat], Field(min_length=3, max_length=3)]
+
+
+class FallConfig(StrictModel):
+    """When the closed loop counts as fallen (checked at every controller tick)."""
+
+    enabled: bool = Field(True, description="Detect falls at all.")
+    min_trunk_height: PositiveFloat = Field(0.25, description="Fallen when the trunk origin is less than this above the free surface [m] (standing: ≈ 0.47 m).")
+    max_roll_deg: float = Field(15.0, gt=0.0, le=180.0, description="Fallen when |trunk roll| exceeds this [deg] (Z-Y-X Euler angles).")
+    max_pitch_deg: float = Field(15.0, gt=0.0, le=90.0, description="Fallen when |trunk pitch| exceeds this [deg].")
+    stop: bool = Field(True, description="End the run at the fall (else record it and go on).")
+
+
+class PushConfig(StrictModel):
+    """A push on the trunk: a constant world-frame force (and torque) held for ``duration``.
+
+    Give ``force`` [N] or ``impulse`` [N·s] (then force = impulse / duration). ``at: time``
+    starts the push at ``time``; ``at: mid_stance`` at the first planned mid-stance (of
+    ``side``, or of either foot) at or after ``time``.
+    """
+
+    at: Literal["time", "mid_stance"] = "time"
+    time: NonNegFloat = Field(description="Start [s] ('time'), or earliest start ('mid_stance').")
+    side: Literal["left", "right", "any"] = Field("any", description="Stance foot whose mid-stance starts the push ('mid_stance' only).")
+    force: Optional[Vector3] = Field(None, description="Force on the trunk [N], world frame.")
+    impulse: Optional[Vector3] = Field(None, description="Impulse on the trunk [N·s], world frame.")
+    torque: Vector3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="Torque on the trunk [N·m], world frame.")
+    duration: PositiveFloat = Field(0.1, description="How long the push lasts [s].")
+
+    @model_validator(mode="after")
+    def _one_of(self) -> "PushConfig":
+        if (self.force is None) == (self.impulse is None):
+            raise ValueError("give exactly one of 'force' [N] and 'impulse' [N·s]")
+        return self
+
+    @property
+    def force_W(self) -> list[float]:
+        """The force held during the push [N], world frame."""
+        if self.force is not None:
+            return list(self.force)
+        return [i / self.duration for i in self.impulse]
+
+
+class GuideRigConfig(StrictModel):
+    """Drop tests: a vertical guide rail on the trunk (springs and dampers on trunk x, y
+    and orientation; vertical motion free), as in a drop-tower experiment."""
+
+    stiffness: PositiveFloat = Field(1.0e5, description="Horizontal spring [N/m].")
+    damping: NonNegFloat = Field(1500.0, description="Horizontal damper [N·s/m].")
+    rot_stiffness: PositiveFloat = Field(800.0, description="Orientation spring [N·m/rad].")
+    rot_damping: NonNegFloat = Field(30.0, description="Orientation damper [N·m·s/rad].")
+
+
+class MetricsConfig(StrictModel):
+    """The window over which summary averages are taken (docs/user-guide.md, summary.json)."""
+
+    settle: NonNegFloat = Field(1.0, description="Time after the end of the speed ramp before averaging starts [s].")
+
+
+class OutputConfig(StrictModel):
+    log_rate_hz: Optional[PositiveFloat] = Field(None, description="Log rows per simulated second [Hz]; default: the WBC rate.")
+    flush_every: int = Field(500, ge=1, description="Rows per log part written to disk.")
+    plots: bool = Field(True, description="Write DIR/plots/*.png after the run.")
+    html_fps: PositiveFloat = Field(30.0, description="Frame rate of DIR/animation.html [1/s].")
+
+
+class SweepConfig(StrictModel):
+    """Runs of one scenario over speeds × terrains (× controller terrains × grid × seeds)."""
+
+    speeds: list[FiniteFloat] = Field(min_length=1, description="Commanded speeds [m/s].")
+    terrains: list[str] = Field(min_length=1, description="Plant terrain names (models/terrain/).")
+    controller_terrains: list[str] = Field(default_factory=lambda: ["plant"], min_length=1,
+                                           description="Controller terrain models ('plant' or terrain names).")
+    grid: dict[str, list[Any]] = Field(default_factory=dict, description="Dotted scenario key → values; every combination is run.")
+    duration: Optional[PositiveFloat] = Field(None, description="sim.duration of every run [s] (default: the scenario's).")
+    seeds: list[int] = Field(default_factory=list, description="sim.seed values (default: the scenario's).")
+    plots: bool = Field(False, description="Write each run's plots (slower).")
+
+    @field_validator("grid", mode="before")
+    @classmethod
+    def _flatten(cls, value: Any) -> Any:
+        """``{controller: {mpc: {horizon: [8, 10]}}}`` → ``{"controller.mpc.horizon": [8, 10]}``."""
+        if not isinstance(value, Mapping):
+            return value
+        out: dict[str, Any] = {}
+
+        def walk(prefix: str, node: Any) -> None:
+            if isinstance(node, Mapping) and (node or not prefix):
+                for k, v in node.items():
+                    walk(f"{prefix}.{k}" if prefix else str(k), v)
+            else:
+                out[prefix] = node
+        walk("", value)
+        return out
+
+
+class ScenarioConfig(StrictModel):
+    """One closed-loop scenario: robot, plant terrain, controller, command and run options.
+
+    ``robot`` and ``terrain`` are the loaded robot and terrain files (scenario YAML names
+    them; :func:`granular_mpc.scenario.load_scenario` inlines them). ``controller_terrain``
+    is the loaded file named by ``controller.terrain`` (``None`` when that is ``plant``).
+    """
+
+    name: str = Field("scenario", description="Scenario name (default output folder runs/<name>-<time>).")
+    description: str = ""
+    mode: Literal["walk", "drop"] = Field("walk", description="'walk': closed-loop walking; 'drop': drop test on a guide rig.")
+    robot: RobotConfig
+    terrain: TerrainConfig
+    controller_terrain: Optional[Annotated[Union[GranularTerrainConfig, RigidTerrainConfig],
+                                           Field(discriminator="kind")]] = None
+    sim: SimConfig = Field(default_factory=SimConfig)
+    controller: ControllerConfig = Field(default_factory=ControllerConfig)
+    command: CommandConfig = Field(default_factory=CommandConfig)
+    initial_clearance: Optional[float] = Field(None, ge=-0.05, le=0.5, description="Lowest sole point above the free surface at t = 0 [m] (walk); default 0 on rigid ground, −0.005 on sand.")
+    drop: DropConfig = Field(default_factory=DropConfig)
+    rig: GuideRigConfig = Field(default_factory=GuideRigConfig)
+    fall: FallConfig = Field(default_factory=FallConfig)
+    pushes: list[PushConfig] = Field(default_factory=list)
+    metrics: MetricsConfig = Field(default_factory=MetricsConfig)
+    output: OutputConfig = Field(default_factory=OutputConfig)
+    sweep: Optional[SweepConfig] = None
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "ScenarioConfig":
+        if self.controller.terrain == "plant" and self.controller_terrain is not None:
+            raise ValueError("controller_terrain is given but controller.terrain is 'plant'; "
+                             "set controller.terrain to a terrain name, or drop controller_terrain")
+        if self.mode == "drop" and self.pushes:
+            raise ValueError("pushes are not supported in mode 'drop' (the guide rig holds the trunk)")
+        if self.output.log_rate_hz is not None and self.output.log_rate_hz * self.sim.dt > 1.0 + 1e-9:
+            raise ValueError(f"output.log_rate_hz = {self.output.log_rate_hz:g} exceeds the plant "
+                             f"rate 1/sim.dt = {1.0 / self.sim.dt:g} Hz")
+        return self
+
+    @property
+    def log_rate_hz(self) -> float:
+        """Log rows per simulated second [Hz]."""
+        return self.output.log_rate_hz or self.controller.wbc.rate_hz
+
+    @property
+    def start_clearance(self) -> float:
+        """Clearance of the lowest sole point above the surface at t = 0 [m]."""
+        if self.mode == "drop":
+            return self.drop.height
+        if self.initial_clearance is not None:
+            return self.initial_clearance
+        return 0.0 if self.terrain.kind == "rigid" else -0.005

@@ -71,6 +71,15 @@ class GroundModel:
         rows = [i for i in range(G.shape[0]) if G[i, 1] > 0 and G[i, 2] < 0]
         return float(min(-G[i, 2] for i in rows))
 
+    def capacity(self, depth: float) -> float:
+        """Vertical force [N] the medium bears at ``depth`` [m] (the polytope's f_max at and
+        beyond the allowed sinkage; unbounded → f_max on rigid ground)."""
+        if not self.granular:
+            return self.polytope.f_max
+        if depth <= 0.0:
+            return 0.0
+        return float(min(np.interp(depth, self._depths, self._caps), self.polytope.f_max))
+
     def sinkage(self, force: float) -> float:
         """Depth Z(F) [m] at which the vertical capacity equals ``force`` [N] (0 on rigid)."""
         if not self.granular or force <= 0.0:

@@ -29,6 +29,25 @@ from .swing import cycloid
 from .wbc import FootPoints, WBCData, WBCReference, WholeBodyController
 
 
+def effective_gait(config: ControllerConfig, ground: GroundModel, weight: float):
+    """The gait with the load-transfer double support this ground needs.
+
+    On sand a touching-down foot bears nothing until it has sunk to the depth whose
+    capacity carries the load, ``Z(W)``; loading it no faster than ``max_sink_rate`` takes
+    ``Z(W)/max_sink_rate`` seconds, during which the other foot must still stand. With
+    ``load_transfer: auto`` that time is taken out of each swing (0 on rigid ground)."""
+    gait = config.gait
+    lt = gait.load_transfer
+    if lt == "auto":
+        lt = ground.sinkage(weight) / config.mpc.max_sink_rate if ground.granular else 0.0
+    swing = min(gait.swing_fraction, 0.5 - float(lt) / gait.period)
+    if swing <= 0.05:
+        from ..exceptions import ConfigError
+        raise ConfigError(f"load transfer of {lt:.3f} s leaves no swing in a {gait.period} s gait",
+                          key="controller.gait.load_transfer", value=lt)
+    return gait.model_copy(update={"swing_fraction": swing, "load_transfer": float(lt)})
+
+
 @dataclass(frozen=True)
 class TickRecord:
     """One controller tick (status as data, never printed)."""
@@ -52,6 +71,8 @@ class ControllerData:
     was_stance: list = field(default_factory=lambda: [True, True])
     plan: MPCPlan | None = None
     next_mpc: float = 0.0
+    speed_integral: float = 0.0             # ∫(v_cmd − v_com,x) dt while walking [m]
+    last_t: float | None = None
     records: list = field(default_factory=list)
     last_tau: np.ndarray | None = None
 
@@ -80,6 +101,7 @@ class WalkingController:
               terrain: TerrainModel) -> "WalkingController":
         """Controller for ``biped`` believing the ground is ``terrain``."""
         ground = ground_model(terrain, config.mpc)
+        config = config.model_copy(update={"gait": effective_gait(config, ground, biped.weight)})
         q0 = biped.standing_configuration()
         data = biped.create_data()
         pin.ccrba(biped.model, data, q0, np.zeros(biped.model.nv))
@@ -145,6 +167,18 @@ class WalkingController:
             out.append(FootPoints(pts, pts - p))
         return out[0], out[1]
 
+    def _depth(self, fp: FootPoints) -> float:
+        """Depth of a foot's lowest points below the surface [m]."""
+        return float(self.ground.surface_height - fp.points[:, 2].mean())
+
+    def _force_cap_now(self, feet) -> np.ndarray:
+        """Normal force each foot may carry now [N]: the capacity at its depth plus the
+        sinkage allowed over half an MPC step. The excess over the present capacity,
+        ≈ F_cap'(z)·δ, is what makes the foot sink, so the look-ahead δ sets both how fast
+        the load can be taken and the largest overshoot (load only as fast as it sinks)."""
+        step = self.config.mpc.max_sink_rate * 0.5 * self.config.mpc.dt
+        return np.array([self.ground.capacity(self._depth(fp) + step) for fp in feet])
+
     def _stance_lever_points(self, fp: FootPoints, load: float) -> np.ndarray:
         """Where a stance foot's points will be under ``load``: deeper by the sinkage still
         to come (granular), else where they are."""
@@ -183,6 +217,16 @@ class WalkingController:
             d.was_stance[i] = stance[i]
         p_ref, v_ref, a_ref = d.ramp.reference(t)
         v_cmd = np.array([v_ref[0], v_ref[1], 0.0])
+        # integral of the forward speed error: corrects the speed the footholds assume
+        fh = self.config.foothold
+        ramp_done = t >= self.command.start_delay + d.ramp.ramp_duration
+        if d.last_t is not None and ramp_done:      # no windup during start-up and ramp
+            d.speed_integral += (v_cmd[0] - vcom[0]) * (t - d.last_t)
+            lim = fh.max_speed_correction / max(fh.k_speed_integral, 1e-9)
+            d.speed_integral = float(np.clip(d.speed_integral, -lim, lim))
+        d.last_t = t
+        v_step = v_cmd.copy()
+        v_step[0] += fh.k_speed_integral * d.speed_integral
         y_line = d.origin[1] + p_ref[1]
         yaw_ref = d.origin[2]
         mg = b.weight
@@ -204,14 +248,12 @@ class WalkingController:
                     c_td = predict_com(com[:2], vcom[:2], p_st, omega, t_td)
                 else:
                     xi, c_td = dcm, com[:2]
-                xy = foothold(self.foothold_config, dcm=xi, v_cmd=v_cmd,
-                              stance_duration=self.schedule.stance_duration, omega=omega,
+                xy = foothold(self.foothold_config, dcm=xi, v_cmd=v_step,
+                              stance_duration=0.5 * self.schedule.period, omega=omega,
                               lateral_sign=1.0 if i == LEFT else -1.0,
                               y_error=com[1] - y_line, com_y=float(c_td[1]),
                               max_lateral=max_lat)
                 z = self.ground.surface_height - self.config.swing.touchdown_depth
-                if self.ground.granular:
-                    z -= 0.5 * self.ground.sinkage(mg)
                 d.target[i] = np.array([xy[0], xy[1], z])
         if self.schedule.standing(t):
             return self._weight_shift(d, t, q, v, com, feet)
@@ -250,7 +292,8 @@ class WalkingController:
         ref = WBCReference(com=com_ref, com_vel=com_vel_ref, com_acc=com_acc,
                            R_trunk=rot_z(yaw_ref), omega=np.zeros(3), stance=stance,
                            forces=forces, swing_pos=sp, swing_vel=sv, swing_acc=sa,
-                           sink_accel=sink_accel)
+                           sink_accel=sink_accel,
+                           force_cap=self._force_cap_now(feet) if self.ground.granular else None)
         t_wbc = time.perf_counter()
         tau = self.wbc.solve(d.wbc, q, v, ref, feet)
         d.records.append(TickRecord(t, "wbc", d.wbc.last_status.value, d.wbc.last_ms,
@@ -268,7 +311,7 @@ class WalkingController:
         s = min(max(t / T, 0.0), 1.0) if T > 0 else 1.0
         blend = 0.5 - 0.5 * math.cos(math.pi * s)
         dblend = 0.5 * math.pi / T * math.sin(math.pi * s) if T > 0 else 0.0
-        e = math.exp(self.omega * self.schedule.stance_duration)
+        e = math.exp(self.omega * 0.5 * self.schedule.period)
         shift = 0.5 * self.step_width * (e - 1.0) / (e + 1.0)   # w/2 − c
         y_l = feet[0].points[:, 1].mean()
         y_r = feet[1].points[:, 1].mean()
@@ -310,15 +353,7 @@ class WalkingController:
         # expected footholds: current swing targets, then one stride further
         stride = np.array([v_cmd[0] * self.schedule.period * 0.5, 0.0])
         for k in range(N):
-            tk = t + (k + 1) * dt
             tm = t + (k + 0.5) * dt
-            x_ref[k, 2] = yaw_ref
-            x_ref[k, 3] = com[0] + v_cmd[0] * (k + 1) * dt
-            blend = min(1.0, (k + 1) * dt / 0.4)
-            x_ref[k, 4] = com[1] + (y_line - com[1]) * blend
-            x_ref[k, 5] = h_ref
-            x_ref[k, 9] = v_cmd[0]
-            x_ref[k, 10] = v_cmd[1] + (y_line - com[1]) / 0.4 * (1.0 - blend)
             c = self.schedule.contacts(tm)
             contacts[k] = c
             n_st = max(sum(c), 1)
@@ -333,9 +368,41 @@ class WalkingController:
                     xy = (d.target[i][:2] if d.target[i] is not None and not stance[i]
                           else feet[i].points.mean(axis=0)[:2] + 2 * stride)
                     points[k, i] = self._landing_points(xy, yaw_ref, load[k, i])
-            _ = tk
+        # horizontal reference: the inverted pendulum rolled out over the planned supports,
+        # so the MPC supplies the forces the foothold plan assumes instead of braking the
+        # CoM toward a constant speed; height and attitude are regulated as usual
+        omega = self.omega
+        ch, sh = math.cosh(omega * dt), math.sinh(omega * dt)
+        p_xy, v_xy = com[:2].copy(), vcom[:2].copy()
+        for k in range(N):
+            feet_k = [i for i in range(2) if contacts[k, i]]
+            if feet_k:
+                sup = np.mean([points[k, i][:, :2].mean(axis=0) for i in feet_k], axis=0)
+                rel = p_xy - sup
+                p_xy, v_xy = sup + rel * ch + v_xy / omega * sh, rel * omega * sh + v_xy * ch
+            else:
+                p_xy = p_xy + v_xy * dt
+            x_ref[k, 2] = yaw_ref
+            x_ref[k, 3:5] = p_xy
+            x_ref[k, 5] = h_ref
+            x_ref[k, 9:11] = v_xy
+        capacity = None
+        if self.ground.granular:
+            rate = cfg.max_sink_rate
+            capacity = np.zeros((N, 2))
+            for i in range(2):
+                depth_now = self._depth(feet[i])
+                for k in range(N):
+                    if not contacts[k, i]:
+                        continue
+                    if stance[i] and self.schedule.time_to_liftoff(t, i) >= (k + 0.5) * dt:
+                        depth = depth_now + rate * (k + 1) * dt
+                    else:   # lands within the horizon, at the surface
+                        since = (k + 1) * dt - self.schedule.time_to_touchdown(t, i)
+                        depth = rate * max(since, 0.0)
+                    capacity[k, i] = self.ground.capacity(depth)
         plan = self.mpc.solve(d.mpc, t=t, x0=x0, x_ref=x_ref, contacts=contacts,
-                              points=points, nominal_load=load)
+                              points=points, nominal_load=load, capacity=capacity)
         d.plan = plan
         d.records.append(TickRecord(t, "mpc", plan.status.value, plan.solve_ms,
                                     (time.perf_counter() - t0) * 1e3, plan.fallback))

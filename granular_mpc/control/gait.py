@@ -136,8 +136,9 @@ def foothold(config: FootholdConfig, *, dcm: np.ndarray, v_cmd: np.ndarray,
     """Horizontal foothold (x, y) in W from the divergent component of motion at touchdown.
 
     Linear inverted pendulum, ω = √(g/h): the DCM ``ξ = p_com + v_com/ω`` (the capture
-    point) obeys ``ξ̇ = ω(ξ − p_foot)``. For a periodic walk at speed v with stance time T
-    and step width w, stepping at
+    point) obeys ``ξ̇ = ω(ξ − p_foot)``. For a periodic walk at speed v with T between
+    successive touchdowns (``stance_duration`` argument; half the gait period) and step
+    width w, stepping at
 
         x_foot = ξ_x − v T/(e^{ωT} − 1)            (speed-proportional, Raibert-type offset)
         y_foot = ξ_y + s·w/(1 + e^{ωT}) + k_p·y_error·T    (s = +1 for the left leg)

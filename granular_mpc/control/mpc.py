@@ -124,7 +124,8 @@ class CentroidalMPC:
 
     # ---------------------------------------------------------------- the tick
     def solve(self, data: MPCData, *, t: float, x0: np.ndarray, x_ref: np.ndarray,
-              contacts: np.ndarray, points: np.ndarray, nominal_load: np.ndarray) -> MPCPlan:
+              contacts: np.ndarray, points: np.ndarray, nominal_load: np.ndarray,
+              capacity: np.ndarray | None = None) -> MPCPlan:
         """One MPC tick.
 
         Args:
@@ -136,6 +137,9 @@ class CentroidalMPC:
                 (used only where the foot is in stance).
             nominal_load: (N, 2) expected vertical load of each foot [N] (for the sinkage
                 levers and the optional sinkage cost).
+            capacity: (N, 2) largest normal force of each foot at each step [N] — on sand
+                the capacity at the depth the foot can have reached by then; the polytope
+                is scaled to it. None: the polytope's own bound.
         """
         import time
 
@@ -214,6 +218,7 @@ class CentroidalMPC:
         poly = self.ground.polytope.scaled(1.0 / nps)
         Gl = poly.G
         nr = Gl.shape[0]
+        cap_full = self.ground.polytope.f_max
         C = np.zeros((self.n_in, self.nu))
         u = np.zeros(self.n_in)
         lb = np.zeros(self.nu)
@@ -225,11 +230,14 @@ class CentroidalMPC:
                 for i in range(nps):
                     col = k * self.nu_step + (s * nps + i) * 3
                     C[row:row + nr, col:col + 3] = Gl @ Rz.T
-                    u[row:row + nr] = poly.h
+                    share = 1.0
+                    if f >= 0 and capacity is not None:
+                        share = min(max(capacity[k, f] / cap_full, 0.0), 1.0)
+                    u[row:row + nr] = poly.h * share
                     if f >= 0:
                         lb[col:col + 2] = -BIG
                         ub[col:col + 2] = BIG
-                        ub[col + 2] = poly.f_max
+                        ub[col + 2] = poly.f_max * share
                     row += nr
         l = np.full(self.n_in, -BIG)
         build_ms = (time.perf_counter() - t0) * 1e3

@@ -51,6 +51,7 @@ class WBCReference:
     swing_acc: np.ndarray
     sink_accel: np.ndarray          # (2,) predicted sinkage acceleration of stance feet [m/s²]
     force_weight: float | None = None   # overrides config.w_force (e.g. no MPC plan yet)
+    force_cap: np.ndarray | None = None  # (2,) largest normal force per foot now [N]
 
 
 @dataclass
@@ -82,6 +83,7 @@ class WholeBodyController:
     swing_kp: float = 400.0
     swing_kd: float = 40.0
     n_points: int = 2
+    contact_damping: float = 20.0   # [1/s] the medium stops a foot loaded within capacity
 
     @property
     def nv(self) -> int:
@@ -137,9 +139,11 @@ class WholeBodyController:
         err_W = pin.log3(ref.R_trunk @ R.T)
         omega_W = R @ v[3:6]
         alpha_W = c.kp_orientation * err_W + c.kd_orientation * (ref.omega - omega_W)
+        # per-axis weights in the trunk frame (roll, pitch, yaw)
         J_ang = np.zeros((3, nv))
         J_ang[:, 3:6] = np.eye(3)
-        add_task(J_ang, np.zeros(3), R.T @ alpha_W, c.w_orientation, "orientation")
+        sw = np.sqrt(np.asarray(c.w_orientation, dtype=float))
+        add_task(sw[:, None] * J_ang, np.zeros(3), sw * (R.T @ alpha_W), 1.0, "orientation")
         # CoM
         a_com = ref.com_acc + c.kp_com * (ref.com - com) + c.kd_com * (ref.com_vel - vcom)
         add_task(Jc, acom_drift, a_com, c.w_com, "com")
@@ -166,7 +170,8 @@ class WholeBodyController:
                         # WBC predicts the foot's acceleration (the change of the planned
                         # sinkage rate) and never feeds back on the foot's velocity, which
                         # would pull a sinking foot up and collapse the stance leg
-                        a_des = np.array([0.0, 0.0, -ref.sink_accel[i]])
+                        a_des = -self.contact_damping * vp
+                        a_des[2] -= ref.sink_accel[i]
                         add_task(Jp, drift, a_des, c.w_contact, f"contact_{side}")
                     else:
                         add_task(Jp, drift, -40.0 * vp, c.w_contact, f"contact_{side}")
@@ -210,14 +215,17 @@ class WholeBodyController:
             yaw = float(np.arctan2(pd.oMf[b.foot_frame[side]].rotation[1, 0],
                                    pd.oMf[b.foot_frame[side]].rotation[0, 0]))
             Gw = poly.G @ rot_z(yaw).T
+            share = 1.0
+            if ref.force_cap is not None:
+                share = min(max(ref.force_cap[i] / self.ground.polytope.f_max, 0.0), 1.0)
             for k in range(nps):
                 col = nv + (i * nps + k) * 3
                 C[row:row + nr, col:col + 3] = Gw
-                u[row:row + nr] = poly.h
+                u[row:row + nr] = poly.h * share
                 row += nr
                 if ref.stance[i]:
                     lb[col + 2] = 0.0
-                    ub[col + 2] = poly.f_max
+                    ub[col + 2] = poly.f_max * share
                 else:
                     lb[col:col + 3] = 0.0
                     ub[col:col + 3] = 0.0

@@ -101,4 +101,34 @@ def staggered_stance(biped: Biped, stagger: float, *, clearance: float = 0.0) ->
     return q
 
 
-__all__ = ["LegGeometry", "leg_geometry", "leg_ik", "leg_fk", "staggered_stance"]
+def balanced_stance(biped: Biped, *, clearance: float = 0.0, iterations: int = 4) -> np.ndarray:
+    """Standing configuration with the whole-body CoM exactly above the soles' contact line.
+
+    The semi-cylindrical soles roll, so a standing robot is an inverted pendulum on its
+    contact line: any fore-aft CoM offset grows as e^{ωt}. Starting from the nominal pose,
+    both feet are moved (leg IK, trunk level) until CoM x equals the contact x. Lowest sole
+    point ``clearance`` [m] above z = 0.
+    """
+    q = biped.standing_configuration(clearance)
+    q_a = q[biped.idx_q].copy()
+    geoms = [leg_geometry(biped, side) for side in SIDES]
+    data = biped.create_data()
+    for _ in range(iterations):
+        q = biped.q_from_parts(q[0:3], [0, 0, 0, 1], q_a)
+        com_x = biped.com(q, data)[0]
+        pin_fk = biped.lowest_sole_point(q, data)   # refreshes frame placements
+        _ = pin_fk
+        feet_x = np.mean([data.oMf[biped.foot_frame[s]].translation[0] for s in SIDES])
+        shift = com_x - feet_x
+        if abs(shift) < 1e-7:
+            break
+        for k, g in enumerate(geoms):
+            p = leg_fk(g, q_a[3 * k: 3 * k + 3])
+            p[0] += shift
+            q_a[3 * k: 3 * k + 3] = leg_ik(g, p)
+    q = biped.q_from_parts([0.0, 0.0, 0.0], [0, 0, 0, 1], q_a)
+    q[2] = clearance - biped.lowest_sole_point(q).min()
+    return q
+
+
+__all__ = ["LegGeometry", "leg_geometry", "leg_ik", "leg_fk", "staggered_stance", "balanced_stance"]
