@@ -244,6 +244,9 @@ class _TerrainBase(StrictModel):
     description: str = ""
     source: str = Field("", description="Where the parameter values come from.")
     surface_height: FiniteFloat = Field(0.0, description="Height of the free surface z [m], world frame.")
+    surface_slope: list[Annotated[float, Field(ge=-0.5, le=0.5)]] = Field(
+        [0.0, 0.0], min_length=2, max_length=2,
+        description="Surface slope dz/dx, dz/dy [-]: the surface is z = h + s_x x + s_y y.")
     effects: list[EffectSpec] = Field(default_factory=list)
 
 

@@ -1,6 +1,9 @@
 """Analysis of run logs and data sets: cost of transport, foot rolling, stance-phase metrics.
 
-Definitions: ``docs/analysis.md``.
+Definitions: ``docs/analysis.md``; the paper's decoupled (sagittal + frontal) CoT:
+``docs/planar-models.md`` §6. Note: ``granular_mpc.analysis.cot_decoupled`` is the
+*function* once this package is imported; import its module's other names with
+``from granular_mpc.analysis.cot_decoupled import ...`` (works as before).
 """
 from .cot import (
     POWER_MODES,
@@ -13,6 +16,7 @@ from .cot import (
     mechanical_power,
     stance_cumulative_cot,
 )
+from .cot_decoupled import DecoupledEnergy, cot_decoupled, decoupled_energy, decoupled_power
 from .metrics import (
     leg_joint_roles,
     phase_bands,
@@ -30,6 +34,8 @@ __all__ = [
     # cot
     "POWER_MODES", "CotResult", "mechanical_power", "cot_from_arrays", "cot_from_log",
     "cumulative_cot", "stance_cumulative_cot", "log_power", "estimate_weight_from_grf",
+    # decoupled CoT (sagittal + frontal planar models)
+    "cot_decoupled", "decoupled_energy", "decoupled_power", "DecoupledEnergy",
     # rolling
     "rolling_from_arrays", "rolling_from_log", "PlateauResult", "detect_plateau",
     "plateau_by_stance",

@@ -29,6 +29,17 @@ from .swing import cycloid
 from .wbc import FootPoints, WBCData, WBCReference, WholeBodyController
 
 
+def max_contact_pairs(schedule: GaitSchedule, mpc) -> int:
+    """Most (step, foot-in-contact) pairs any MPC horizon of this gait contains (sampled
+    over one gait cycle after the start-up)."""
+    best = mpc.horizon
+    t0 = schedule.start
+    for s in np.linspace(0.0, schedule.period, 97):
+        n = sum(sum(schedule.contacts(t0 + s + (k + 0.5) * mpc.dt)) for k in range(mpc.horizon))
+        best = max(best, n)
+    return int(best)
+
+
 def effective_gait(config: ControllerConfig, ground: GroundModel, weight: float):
     """The gait with the load-transfer double support this ground needs.
 
@@ -109,7 +120,7 @@ class WalkingController:
         schedule = GaitSchedule(config.gait)
         mpc = CentroidalMPC(config.mpc, biped.mass, inertia, biped.gravity, ground,
                             n_points=biped.config.foot.slices,
-                            double_support=config.gait.double_support)
+                            max_pairs=max_contact_pairs(schedule, config.mpc))
         wbc = WholeBodyController(config.wbc, biped, ground, config.swing.kp, config.swing.kd,
                                   n_points=biped.config.foot.slices)
         return cls(config, command, biped, terrain, ground, schedule, mpc, wbc, inertia,

@@ -18,8 +18,11 @@ solve the predicted sinkage of every stance foot, ``z_k = max_{j≤k} Z(f_z,j)``
 is reported with the plan. An optional cost ``w_s Σ (Z(F̄) + Z'(F̄)(f_z − F̄))²`` trades peak
 forces against sinkage. Force constraints come from :mod:`.contact_model`.
 
-The QP: ``min ½ UᵀHU + gᵀU`` s.t. per-point polytope rows and box bounds (swing feet fixed
-at zero force); size fixed per controller (N · feet-per-step · 2 points · 3).
+The QP: ``min ½ UᵀHU + gᵀU`` with one block of variables per *(step, foot in contact)*
+pair — the forces of that foot's contact points. Its size is fixed per controller: the
+largest number of such pairs any horizon of the gait can contain (N for a single-support
+gait, a few more with double support); unused blocks are padding held at zero. The ground
+polytope bounds each foot's total force; each contact point only pushes (0 ≤ f_z).
 """
 
 from __future__ import annotations
@@ -86,7 +89,7 @@ class CentroidalMPC:
     gravity: float
     ground: GroundModel
     n_points: int = 2
-    double_support: bool = False
+    max_pairs: int = 10         # most (step, foot) contacts in one horizon
 
     # ---------------------------------------------------------------- sizes
     @property
@@ -94,24 +97,20 @@ class CentroidalMPC:
         return self.config.horizon
 
     @property
-    def slots(self) -> int:
-        return 2 if self.double_support else 1
-
-    @property
-    def nu_step(self) -> int:
-        return self.slots * self.n_points * 3
+    def nu_pair(self) -> int:
+        return self.n_points * 3
 
     @property
     def nu(self) -> int:
-        return self.N * self.nu_step
+        return self.max_pairs * self.nu_pair
 
     @property
-    def rows_per_point(self) -> int:
+    def rows_per_foot(self) -> int:
         return self.ground.polytope.G.shape[0]
 
     @property
     def n_in(self) -> int:
-        return self.N * self.slots * self.n_points * self.rows_per_point
+        return self.max_pairs * self.rows_per_foot
 
     def new_data(self) -> MPCData:
         return MPCData(ProxQPSolver(self.nu, 0, self.n_in, box=True, eps_abs=1e-4, max_iter=100))
@@ -145,7 +144,7 @@ class CentroidalMPC:
 
         t0 = time.perf_counter()
         c = self.config
-        N, nx, nps = self.N, 12, self.n_points
+        N, nx, nps, npair = self.N, 12, self.n_points, self.nu_pair
         dt = c.dt
         yaw = float(x_ref[0, 2])
         Rz = rot_z(yaw)
@@ -154,32 +153,21 @@ class CentroidalMPC:
         A[0:3, 6:9] = Rz.T
         A[3:6, 9:12] = np.eye(3)
         Adt = A * dt
-        # slot assignment: which foot each slot carries at each step
-        slot_foot = np.full((N, self.slots), -1, dtype=int)
-        for k in range(N):
-            feet = [f for f in (0, 1) if contacts[k, f]]
-            if self.double_support:
-                for f in feet:
-                    slot_foot[k, f] = f
-            elif feet:
-                # single support gait: one slot; if the plan has both (start-up), take the
-                # one with the larger nominal load
-                slot_foot[k, 0] = max(feet, key=lambda f: nominal_load[k, f])
-        Bd = np.zeros((N, nx, self.nu_step))
-        for k in range(N):
+        # one variable block per (step, foot in contact)
+        pairs = [(k, f) for k in range(N) for f in (0, 1) if contacts[k, f]]
+        if len(pairs) > self.max_pairs:   # more contacts than planned for: keep the loaded ones
+            pairs = sorted(pairs, key=lambda kf: -nominal_load[kf])[: self.max_pairs]
+            pairs.sort()
+        Bp = np.zeros((len(pairs), nx, npair))
+        for j, (k, f) in enumerate(pairs):
             pc = x_ref[k, 3:6]
-            for s in range(self.slots):
-                f = slot_foot[k, s]
-                if f < 0:
-                    continue
-                for i in range(nps):
-                    col = (s * nps + i) * 3
-                    r = points[k, f, i] - pc
-                    Bc = np.zeros((nx, 3))
-                    Bc[6:9] = I_W_inv @ skew(r)
-                    Bc[9:12] = np.eye(3) / self.mass
-                    Bd[k, :, col:col + 3] = Bc * dt + A @ Bc * (0.5 * dt * dt)
-        E = np.einsum("ij,kjl->kil", Adt, Bd)          # (A dt) B_d,j
+            for i in range(nps):
+                r = points[k, f, i] - pc
+                Bc = np.zeros((nx, 3))
+                Bc[6:9] = I_W_inv @ skew(r)
+                Bc[9:12] = np.eye(3) / self.mass
+                Bp[j, :, 3 * i:3 * i + 3] = Bc * dt + A @ Bc * (0.5 * dt * dt)
+        Ep = np.einsum("ij,pjl->pil", Adt, Bp)        # (A dt) B_d of each pair
         cvec = np.zeros(nx)
         cvec[11] = -self.gravity
         cd = cvec * dt + A @ cvec * (0.5 * dt * dt)
@@ -187,58 +175,47 @@ class CentroidalMPC:
         Gam = np.zeros((N * nx, self.nu))
         free = np.zeros(N * nx)
         for k in range(1, N + 1):
-            rows = slice((k - 1) * nx, k * nx)
-            for j in range(k):
-                Gam[rows, j * self.nu_step:(j + 1) * self.nu_step] = Bd[j] + (k - 1 - j) * E[j]
-            free[rows] = x0 + k * (Adt @ x0) + k * cd + 0.5 * k * (k - 1) * Acd
+            free[(k - 1) * nx:k * nx] = x0 + k * (Adt @ x0) + k * cd + 0.5 * k * (k - 1) * Acd
+        for j, (kj, _) in enumerate(pairs):
+            cols = slice(j * npair, (j + 1) * npair)
+            for k in range(kj + 1, N + 1):
+                Gam[(k - 1) * nx:k * nx, cols] = Bp[j] + (k - 1 - kj) * Ep[j]
         err = free - self._wrap_reference(x_ref, x0).ravel()
         q = np.tile(self._q_diag(), N)
         QG = Gam * q[:, None]
         H = Gam.T @ QG
         g = QG.T @ err
         H[np.diag_indices_from(H)] += c.weight_force
-        # optional sinkage cost on the normal forces
         if c.weight_sinkage > 0.0 and self.ground.granular:
-            for k in range(N):
-                for s in range(self.slots):
-                    f = slot_foot[k, s]
-                    if f < 0:
-                        continue
-                    F0 = nominal_load[k, f] / nps
-                    z0 = self.ground.sinkage(nominal_load[k, f])
-                    dz = self.ground.sinkage_slope(nominal_load[k, f])
-                    for i in range(nps):
-                        jz = k * self.nu_step + (s * nps + i) * 3 + 2
-                        # (z0 + dz·nps·(f_z − F0))² per point
-                        a = dz * nps
-                        H[jz, jz] += 2.0 * c.weight_sinkage * a * a
-                        g[jz] += 2.0 * c.weight_sinkage * a * (z0 - a * F0)
+            for j, (k, f) in enumerate(pairs):
+                z0 = self.ground.sinkage(nominal_load[k, f])
+                a = self.ground.sinkage_slope(nominal_load[k, f])
+                F0 = nominal_load[k, f]
+                # (z0 + a (F_z − F0))², F_z = Σ of the foot's points
+                jz = [j * npair + 3 * i + 2 for i in range(nps)]
+                H[np.ix_(jz, jz)] += 2.0 * c.weight_sinkage * a * a
+                g[jz] += 2.0 * c.weight_sinkage * a * (z0 - a * F0)
         H = 0.5 * (H + H.T)
-        # constraints
-        poly = self.ground.polytope.scaled(1.0 / nps)
-        Gl = poly.G
-        nr = Gl.shape[0]
-        cap_full = self.ground.polytope.f_max
+        # constraints: the ground polytope on each foot's total force, unilateral points
+        poly = self.ground.polytope
+        Gw = poly.G @ Rz.T
+        nr = Gw.shape[0]
         C = np.zeros((self.n_in, self.nu))
         u = np.zeros(self.n_in)
         lb = np.zeros(self.nu)
         ub = np.zeros(self.nu)
-        row = 0
-        for k in range(N):
-            for s in range(self.slots):
-                f = slot_foot[k, s]
-                for i in range(nps):
-                    col = k * self.nu_step + (s * nps + i) * 3
-                    C[row:row + nr, col:col + 3] = Gl @ Rz.T
-                    share = 1.0
-                    if f >= 0 and capacity is not None:
-                        share = min(max(capacity[k, f] / cap_full, 0.0), 1.0)
-                    u[row:row + nr] = poly.h * share
-                    if f >= 0:
-                        lb[col:col + 2] = -BIG
-                        ub[col:col + 2] = BIG
-                        ub[col + 2] = poly.f_max * share
-                    row += nr
+        for j, (k, f) in enumerate(pairs):
+            share = 1.0
+            if capacity is not None:
+                share = min(max(capacity[k, f] / poly.f_max, 0.0), 1.0)
+            rows = slice(j * nr, (j + 1) * nr)
+            u[rows] = poly.h * share
+            for i in range(nps):
+                col = j * npair + 3 * i
+                C[rows, col:col + 3] = Gw
+                lb[col:col + 2] = -BIG
+                ub[col:col + 2] = BIG
+                ub[col + 2] = poly.f_max * share
         l = np.full(self.n_in, -BIG)
         build_ms = (time.perf_counter() - t0) * 1e3
         sol = data.solver.solve(QPProblem(H, g, None, None, C, l, u, lb, ub))
@@ -248,14 +225,10 @@ class CentroidalMPC:
             U = sol.x
         else:
             data.failures += 1
-            U, fallback = self._fallback(data, t, slot_foot, nominal_load)
+            U, fallback = self._fallback(data, t, pairs, nominal_load)
         forces = np.zeros((N, 2, nps, 3))
-        Ur = U.reshape(N, self.slots, nps, 3)
-        for k in range(N):
-            for s in range(self.slots):
-                f = slot_foot[k, s]
-                if f >= 0:
-                    forces[k, f] = Ur[k, s]
+        for j, (k, f) in enumerate(pairs):
+            forces[k, f] = U[j * npair:(j + 1) * npair].reshape(nps, 3)
         states = (free + Gam @ U).reshape(N, nx)
         sink = self._predicted_sinkage(forces, contacts)
         plan = MPCPlan(t, forces, states, contacts.copy(), sink, sol.status, sol.solve_ms,
@@ -283,33 +256,27 @@ class CentroidalMPC:
                 out[k, f] = deepest
         return out
 
-    def _fallback(self, data: MPCData, t: float, slot_foot: np.ndarray,
+    def _fallback(self, data: MPCData, t: float, pairs: list,
                   nominal_load: np.ndarray) -> tuple[np.ndarray, str]:
-        """Shifted previous plan if it covers now, else nominal (gravity-sharing) forces."""
-        N, nps = self.N, self.n_points
-        U = np.zeros((N, self.slots, nps, 3))
+        """Shifted previous plan where it covers a pair, else nominal (gravity-sharing)
+        forces."""
+        nps, npair = self.n_points, self.nu_pair
+        U = np.zeros(self.nu)
         last = data.last
-        if last is not None and last.status.ok:
-            shift = int(round((t - last.t) / self.config.dt))
-            ok = True
-            for k in range(N):
-                src = k + shift
-                for s in range(self.slots):
-                    f = slot_foot[k, s]
-                    if f < 0:
-                        continue
-                    if src < N and last.contacts[src, f]:
-                        U[k, s] = last.forces[src, f]
-                    else:
-                        ok = False
-                        U[k, s, :, 2] = nominal_load[k, f] / nps
-            return U.ravel(), "shifted" if ok else "shifted+nominal"
-        for k in range(N):
-            for s in range(self.slots):
-                f = slot_foot[k, s]
-                if f >= 0:
-                    U[k, s, :, 2] = nominal_load[k, f] / nps
-        return U.ravel(), "nominal"
+        shift = int(round((t - last.t) / self.config.dt)) if last is not None else 0
+        shifted = 0
+        for j, (k, f) in enumerate(pairs):
+            block = np.zeros((nps, 3))
+            src = k + shift
+            if last is not None and last.status.ok and src < self.N and last.contacts[src, f]:
+                block = last.forces[src, f]
+                shifted += 1
+            else:
+                block[:, 2] = nominal_load[k, f] / nps
+            U[j * npair:(j + 1) * npair] = block.ravel()
+        if shifted == len(pairs) and pairs:
+            return U, "shifted"
+        return U, "shifted+nominal" if shifted else "nominal"
 
 
 __all__ = ["CentroidalMPC", "MPCData", "MPCPlan", "rot_z", "skew"]

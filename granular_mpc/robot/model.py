@@ -50,6 +50,7 @@ class Biped:
         urdf = config.urdf_path
         if not urdf.is_file():
             raise ModelFileError(f"URDF not found: {urdf}", key="robot.urdf", value=config.urdf)
+        _check_inertials(urdf)
         try:
             model = pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer())
             visual = (pin.buildGeomFromUrdf(model, str(urdf), pin.GeometryType.VISUAL)
@@ -158,6 +159,49 @@ class Biped:
         """Whole-body centre of mass in W [m]."""
         data = data or self.create_data()
         return np.array(pin.centerOfMass(self.model, data, q))
+
+
+def _check_inertials(urdf) -> None:
+    """Reject non-physical ``<inertial>`` blocks, naming the link (Pinocchio accepts them).
+
+    Each link's mass and inertia diagonal must be finite and ≥ 0 (zero-mass dummy links
+    are allowed; a massless body on a moving joint shows up as a singular mass matrix).
+    Off-diagonal inertia terms and the triangle inequality are not checked here.
+
+    Raises:
+        ModelError: naming the link, the offending value and the file.
+    """
+    import math
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(str(urdf)).getroot()
+    except ET.ParseError as exc:
+        raise ModelError(f"cannot parse {urdf}: {exc}") from None
+    for link in root.iter("link"):
+        inertial = link.find("inertial")
+        if inertial is None:
+            continue
+        name = link.get("name", "?")
+        mass = inertial.find("mass")
+        raw = mass.get("value") if mass is not None else None
+        try:
+            m = float(raw)
+        except (TypeError, ValueError):
+            m = math.nan
+        if not (math.isfinite(m) and m >= 0.0):
+            raise ModelError(f"{urdf.name}: link {name!r} has mass {raw!r}; "
+                             "a link mass must be a finite number ≥ 0 kg")
+        inertia = inertial.find("inertia")
+        if inertia is not None:
+            for key in ("ixx", "iyy", "izz"):
+                try:
+                    val = float(inertia.get(key, "0"))
+                except ValueError:
+                    val = math.nan
+                if not (math.isfinite(val) and val >= 0.0):
+                    raise ModelError(f"{urdf.name}: link {name!r} has inertia {key} = "
+                                     f"{inertia.get(key)!r}; must be a finite number ≥ 0 kg·m²")
 
 
 def load_biped(name_or_path: str = "yobogo10s", *, with_visuals: bool = True) -> Biped:

@@ -158,7 +158,9 @@ def _segment_depth_integral(o, d1, d2, length):
     diff = d1 - d2
     safe = o.if_else(o.fabs(diff) > 1e-12, diff, 1.0)
     general = length * (p1 * p1 - p2 * p2) / (2.0 * safe)
-    return o.if_else(o.fabs(diff) > 1e-12, general, length * p1)
+    # level segment: the mean depth (same value as the limit of ``general``, and — unlike
+    # ``length * p1`` — the right derivative with respect to both end depths)
+    return o.if_else(o.fabs(diff) > 1e-12, general, length * 0.5 * (p1 + p2))
 
 
 def _segment_depth_sq_integral(o, d1, d2, length):
@@ -167,7 +169,8 @@ def _segment_depth_sq_integral(o, d1, d2, length):
     diff = d1 - d2
     safe = o.if_else(o.fabs(diff) > 1e-12, diff, 1.0)
     general = length * (p1 ** 3 - p2 ** 3) / (3.0 * safe)
-    return o.if_else(o.fabs(diff) > 1e-12, general, length * p1 * p1)
+    # level segment: limit of ``general`` written symmetrically (right derivatives)
+    return o.if_else(o.fabs(diff) > 1e-12, general, length * (p1 * p1 + p1 * p2 + p2 * p2) / 3.0)
 
 
 def _arc_depth_sq_prim(o, dc, R, p):

@@ -73,8 +73,11 @@ def _scale(k, a):
 
 
 def slice_geometry(o, kin, y_k: float, radius: float, half_angle: float,
-                   surface: Any) -> SliceGeometry:
-    """Lowest point, depth, pitch and heading of the slice at lateral offset ``y_k``."""
+                   surface: Any, slope: tuple = (0.0, 0.0)) -> SliceGeometry:
+    """Lowest point, depth, pitch and heading of the slice at lateral offset ``y_k``.
+
+    The free surface is the plane ``z = surface + slope_x·x + slope_y·y`` (W); the depth
+    is measured vertically below it at the contact point (small slopes)."""
     p = _v(kin[0:3])
     R = kin[3:12]
     e_x = (R[0], R[1], R[2])
@@ -93,7 +96,8 @@ def slice_geometry(o, kin, y_k: float, radius: float, half_angle: float,
     hn = o.sqrt(e_x[0] * e_x[0] + e_x[1] * e_x[1] + 1e-12)
     heading = (e_x[0] / hn, e_x[1] / hn, 0.0)
     lateral = (-heading[1], heading[0], 0.0)
-    return SliceGeometry(p_c, v_c, surface - p_c[2], -psi_low, heading, lateral, e_x, e_z)
+    z_surf = surface + slope[0] * p_c[0] + slope[1] * p_c[1]
+    return SliceGeometry(p_c, v_c, z_surf - p_c[2], -psi_low, heading, lateral, e_x, e_z)
 
 
 @dataclass
@@ -173,7 +177,8 @@ class CompiledContact:
             e_prev, c0 = _v(st[0:3]), _v(st[3:6])
             flag, v_prev = st[6], _v(st[7:10])
             depth_max, t_stance = st[10], st[11]
-            geom = slice_geometry(o, kin, y_k, radius, half_angle, th["surface_height"])
+            geom = slice_geometry(o, kin, y_k, radius, half_angle, th["surface_height"],
+                                  (th["surface_slope_x"], th["surface_slope_y"]))
             touching = geom.depth > 0.0
             was = flag > 0.5
             # touchdown: C0 is the first contact point, the spring starts relaxed

@@ -24,13 +24,13 @@ from .contact import LawOutput, clip, elastic_trial, from_basis, to_basis
 from .rft import Coefficients
 
 #: calibratable / tunable parameters of the granular law, in θ order
-GRANULAR_PARAMS = ("surface_height", "zeta", "phi_s", "bulldozing_length", "sole_shear_alpha",
+GRANULAR_PARAMS = ("surface_height", "surface_slope_x", "surface_slope_y", "zeta", "phi_s", "bulldozing_length", "sole_shear_alpha",
                    "added_mass_scale", "layer_depth", "contact_stiffness", "contact_damping",
                    "direction_time_constant")
 
 
 def granular_param_values(cfg) -> list[float]:
-    return [cfg.surface_height, cfg.zeta, math.radians(cfg.phi_s_deg), cfg.bulldozing_length,
+    return [cfg.surface_height, cfg.surface_slope[0], cfg.surface_slope[1], cfg.zeta, math.radians(cfg.phi_s_deg), cfg.bulldozing_length,
             cfg.sole_shear_alpha, cfg.added_mass_scale, cfg.layer_depth, cfg.contact_stiffness,
             cfg.contact_damping, cfg.direction_time_constant]
 
@@ -60,7 +60,16 @@ def make_granular_law(cfg, slice_shape: FootShape, full_width: float):
                                  coeffs=coeffs)
         t_h, t_l, t_z = to_basis(f_tr, h, l)
         f_h = clip(o, t_h, o.fmin(0.0, sag.f_h), o.fmax(0.0, sag.f_h))
-        f_z = clip(o, t_z, o.fmin(0.0, sag.f_z), o.fmax(0.0, sag.f_z))
+        # pure-penetration capacity at this depth (also reported as f_cap_z)
+        cap_z = sagittal_forces(o, slice_shape, phi, g.depth, g.psi_c, 0.0, -1.0,
+                                coeffs=coeffs, zeta=zeta).f_z
+        # Vertical bounds. Sinking (u_z < 0): [min(0, F_z(u)), max(0, F_z(u))], the flow
+        # force of the current direction. Rising (u_z > 0) a compressed spring unloads
+        # elastically: the upper bound stays at the penetration capacity instead of
+        # dropping to max(0, F_z(up)) = 0, which would let go of a loaded foot on any
+        # rebound faster than |e|/τ and make it ratchet down (creep) under vibration.
+        f_z_hi = o.if_else(u_z > 0.0, o.fmax(cap_z, 0.0), o.fmax(0.0, sag.f_z))
+        f_z = clip(o, t_z, o.fmin(0.0, sag.f_z), f_z_hi)
         f_l = clip(o, t_l, -cap_l, cap_l)
         e_h, e_l, e_z = to_basis(e, h, l)
         tol = 1e-9
@@ -74,8 +83,6 @@ def make_granular_law(cfg, slice_shape: FootShape, full_width: float):
         below = g.depth - th["layer_depth"]
         f_floor = o.if_else(below > 0.0, o.fmax(floor_k * below - D * g.v_c[2], 0.0), 0.0)
         force = from_basis((f_h, f_l, f_z + f_floor), h, l)
-        cap_z = sagittal_forces(o, slice_shape, phi, g.depth, g.psi_c, 0.0, -1.0,
-                                coeffs=coeffs, zeta=zeta).f_z
         # submerged horizontal extent: where the free surface cuts the arc or the wedge
         R = slice_shape.radius
         dc = g.depth - R

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 from .contact import LawOutput, elastic_trial, from_basis, to_basis
 
-RIGID_PARAMS = ("surface_height", "friction", "contact_stiffness", "contact_damping")
+RIGID_PARAMS = ("surface_height", "surface_slope_x", "surface_slope_y", "friction", "contact_stiffness", "contact_damping")
 
 
 def rigid_param_values(cfg) -> list[float]:
-    return [cfg.surface_height, cfg.friction, cfg.contact_stiffness, cfg.contact_damping]
+    return [cfg.surface_height, cfg.surface_slope[0], cfg.surface_slope[1], cfg.friction, cfg.contact_stiffness, cfg.contact_damping]
 
 
 def make_rigid_law(cfg):

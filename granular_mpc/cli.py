@@ -1,0 +1,387 @@
+"""The ``granular-mpc`` command line (typer).
+
+    granular-mpc run CONFIG [--set key.path=value …] [--out DIR] [--view] [--html]
+    granular-mpc sweep CONFIG [--set …] [--out DIR] [--workers N] [--backend local|ray]
+    granular-mpc view RUN_DIR [--html PATH]
+    granular-mpc synth CONFIG --effect NAME[:k=v,…] --noise PREFIX=STD --seed N --out DATA_DIR
+    granular-mpc validate DATA_DIR [--model granular|rigid|planar] [--effect NAME …] --out DIR
+    granular-mpc diagnose DATA_DIR --out DIR
+    granular-mpc bench [--json DIR]
+
+Bad input (malformed YAML, unknown key, wrong type, a ``--set`` of a key that does not
+exist, a missing robot/terrain/scenario file, an output folder that cannot be written)
+prints **one** message naming the problem on stderr and exits non-zero, without a
+traceback unless ``--debug``.
+
+Exit codes: 0 done (a run that fell is done: the fall is its result); 1 a run ended early
+(plant diverged, controller error) or an unexpected error; 2 bad input; 3 a command that
+is not available yet; 130 interrupted (Ctrl-C). See docs/user-guide.md.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import subprocess
+import sys
+import traceback
+from pathlib import Path
+from typing import Annotated, Any, Iterator, Optional
+
+import typer
+
+from .exceptions import ConfigError, GranularMpcError, OutputError
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_UNAVAILABLE, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+
+app = typer.Typer(
+    name="granular-mpc",
+    help="Bipedal walking on granular terrain: closed-loop runs, sweeps, replays, validation.",
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+# ----------------------------------------------------------------------------- options
+SetOpt = Annotated[Optional[list[str]], typer.Option(
+    "--set", "-s", metavar="KEY.PATH=VALUE",
+    help="Override a scenario key (repeatable); the value is parsed as YAML. "
+         "'terrain=NAME' swaps the plant's terrain file, 'controller.terrain=NAME' the "
+         "controller's.")]
+DebugOpt = Annotated[bool, typer.Option("--debug", help="Show tracebacks.")]
+QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")]
+
+
+def _err(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+@contextlib.contextmanager
+def _errors(debug: bool) -> Iterator[None]:
+    """One clear message on stderr and a non-zero exit for every error; traceback only
+    with ``--debug``."""
+    try:
+        yield
+    except typer.Exit:
+        raise
+    except KeyboardInterrupt:
+        _err("interrupted")
+        raise typer.Exit(EXIT_INTERRUPTED) from None
+    except (ConfigError, OutputError) as exc:
+        if debug:
+            traceback.print_exc()
+        _err(f"error: {exc}")
+        raise typer.Exit(EXIT_BAD_INPUT) from None
+    except GranularMpcError as exc:
+        if debug:
+            traceback.print_exc()
+        _err(f"error: {exc}")
+        raise typer.Exit(EXIT_FAILED) from None
+    except Exception as exc:
+        if debug:
+            traceback.print_exc()
+        _err(f"error: unexpected {type(exc).__name__}: {exc}"
+             + ("" if debug else " (run again with --debug for the traceback)"))
+        raise typer.Exit(EXIT_FAILED) from None
+
+
+def _fmt(value: Any) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, dict):
+        return ", ".join(f"{k} {_fmt(v)}" for k, v in value.items() if k != "n")
+    return str(value)
+
+
+#: Summary lines printed after a run: (key, label, unit).
+_SUMMARY_LINES = (
+    ("terrain", "terrain (plant)", ""), ("controller_terrain_model", "controller terrain", ""),
+    ("commanded_speed_mps", "commanded speed", "m/s"), ("mean_speed_mps", "mean speed", "m/s"),
+    ("sim_time_s", "simulated", "s"), ("wall_time_s", "wall time", "s"),
+    ("realtime_factor", "real-time factor", ""), ("fell", "fell", ""),
+    ("cot", "CoT", ""), ("cot_decoupled", "CoT decoupled", ""),
+    ("sinkage_peak_mm_mean", "peak sinkage (mean)", "mm"), ("slip_mm_mean", "slip (mean)", "mm"),
+    ("lateral_drift_m", "lateral drift", "m"), ("max_roll_deg", "max |roll|", "deg"),
+    ("max_pitch_deg", "max |pitch|", "deg"), ("mpc_solve_ms", "MPC solve", "ms"),
+    ("wbc_solve_ms", "WBC solve", "ms"), ("qp_failures", "QP failures", ""),
+    ("complete", "complete", ""), ("reason", "reason", ""),
+)
+
+
+def print_summary(summary: dict, out_dir: Path) -> None:
+    """The run's key figures on stdout, one ``label: value unit`` line each."""
+    for key, label, unit in _SUMMARY_LINES:
+        if key in summary:
+            val = _fmt(summary[key])
+            print(f"{label + ':':<22}{val}{(' ' + unit) if unit and val != '-' else ''}")
+    print(f"{'outputs:':<22}{out_dir}")
+
+
+# ----------------------------------------------------------------------------- run
+@app.command()
+def run(
+    config: Annotated[str, typer.Argument(help="Scenario YAML (e.g. sim/sand_walk.yaml) or a shipped scenario name.")],
+    set_: SetOpt = None,
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Run folder (default runs/<scenario>-<time>).")] = None,
+    view: Annotated[bool, typer.Option("--view", help="Live Meshcat view while the run goes (prints the URL).")] = False,
+    html: Annotated[bool, typer.Option("--html", help="Also write DIR/animation.html (standalone page).")] = False,
+    quiet: QuietOpt = False,
+    debug: DebugOpt = False,
+) -> None:
+    """Run one closed-loop scenario: DIR/summary.json, config.resolved.yaml, log/, plots/."""
+    from .runner import default_out_dir, run_scenario
+    from .scenario import load_scenario
+
+    with _errors(debug):
+        scenario = load_scenario(config, set_ or [])
+        out_dir = out if out is not None else default_out_dir(scenario)
+        result = run_scenario(scenario, out_dir, progress=not quiet, html=html, view=view)
+        print_summary(result.summary, result.out_dir)
+        if view:
+            _err(f"the live view closed with the run; replay it with: granular-mpc view {result.out_dir}")
+        if result.interrupted:
+            _err(f"run interrupted: {result.reason}; the log so far is in {result.log_dir}")
+            raise typer.Exit(EXIT_INTERRUPTED)
+        if not result.complete:
+            _err(f"run ended early: {result.reason}")
+            raise typer.Exit(EXIT_FAILED)
+
+
+# ----------------------------------------------------------------------------- sweep
+@app.command()
+def sweep(
+    config: Annotated[str, typer.Argument(help="Scenario YAML with a 'sweep:' section (e.g. sim/velocity_sweep.yaml).")],
+    set_: SetOpt = None,
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Sweep folder (default runs/<scenario>-<time>).")] = None,
+    workers: Annotated[Optional[int], typer.Option("--workers", "-j", min=1, help="Parallel runs (default: all cores).")] = None,
+    backend: Annotated[str, typer.Option("--backend", help="local (process pool) or ray.")] = "local",
+    ray_address: Annotated[Optional[str], typer.Option("--ray-address", help="Join a running Ray cluster (e.g. auto or ray://host:10001).")] = None,
+    quiet: QuietOpt = False,
+    debug: DebugOpt = False,
+) -> None:
+    """Run speeds × terrains (× controller terrains × grid) in parallel: DIR/sweep.csv + CoT plot."""
+    from .runner import default_out_dir, run_sweep
+    from .scenario import expand_sweep
+
+    with _errors(debug):
+        if backend not in ("local", "ray"):
+            raise ConfigError(f"unknown backend {backend!r}", key="--backend", allowed="local, ray")
+        base, tasks = expand_sweep(config, set_ or [])
+        out_dir = out if out is not None else default_out_dir(base)
+        print(f"sweep '{base.name}': {len(tasks)} runs, backend {backend}, output {out_dir}",
+              flush=True)
+
+        def line(r: dict) -> None:
+            s = r["summary"]
+            print(f"  {r['name']}: mean speed {_fmt(s.get('mean_speed_mps'))} m/s, "
+                  f"CoT {_fmt(s.get('cot'))}, fell {_fmt(s.get('fell'))}"
+                  + ("" if s.get("complete") else f", INCOMPLETE ({s.get('reason')})"),
+                  flush=True)
+
+        res = run_sweep(tasks, out_dir, workers=workers, backend=backend,
+                        ray_address=ray_address, progress=not quiet, on_result=line)
+        print(f"sweep table: {res.csv}")
+        if res.plot is not None:
+            print(f"CoT plot: {res.plot} ({res.plot_note})")
+        else:
+            print(f"CoT plot: none ({res.plot_note})")
+        print_ratio(res.ratio)
+        if not res.complete:
+            _err("sweep incomplete: some runs were interrupted or failed (see sweep.csv: complete, reason)")
+            raise typer.Exit(EXIT_FAILED)
+
+
+def print_ratio(ratio) -> None:
+    """The CoT ratio to rigid ground per speed, as a small table on stdout."""
+    if ratio is None or len(ratio) == 0:
+        print("CoT ratio to rigid ground: no pairs (needs runs on 'rigid' and another terrain "
+              "at the same speed, with a finite CoT)")
+        return
+    print("CoT ratio to rigid ground per commanded speed:")
+    print(f"  {'series':<34}{'speed [m/s]':>12}{'CoT ratio':>12}")
+    for r in ratio.itertuples(index=False):
+        print(f"  {str(r.series):<34}{r.commanded_speed_mps:>12.3g}{r.cot_ratio:>12.3f}")
+
+
+# ----------------------------------------------------------------------------- view
+@app.command()
+def view(
+    run_dir: Annotated[Path, typer.Argument(help="A run folder written by 'granular-mpc run'.")],
+    html: Annotated[Optional[Path], typer.Option("--html", help="Write the standalone page here instead of serving it live.")] = None,
+    fps: Annotated[float, typer.Option("--fps", min=1.0, help="Animation frame rate.")] = 30.0,
+    debug: DebugOpt = False,
+) -> None:
+    """Replay a saved run: live in Meshcat (until Ctrl-C), or as one HTML page with --html."""
+    from .viz.meshcat import replay
+
+    with _errors(debug):
+        if not run_dir.is_dir():
+            raise OutputError(f"no run folder {run_dir}")
+        out = replay(run_dir, html, fps=fps)
+        if html is not None:
+            print(f"wrote {out}")
+
+
+# ----------------------------------------------------------------------------- bench
+def _bench_dir(given: Optional[Path]) -> Path | None:
+    if given is not None:
+        return given
+    for cand in (Path.cwd() / "bench", Path(__file__).resolve().parent.parent / "bench"):
+        if cand.is_dir():
+            return cand
+    return None
+
+
+@app.command()
+def bench(
+    json_dir: Annotated[Optional[Path], typer.Option("--json", help="Also write each script's figures to DIR/<script>.json.")] = None,
+    bench_dir: Annotated[Optional[Path], typer.Option("--dir", help="Folder of the bench scripts (default ./bench).")] = None,
+    debug: DebugOpt = False,
+) -> None:
+    """Run the bench/*.py scripts and print their 'name: value unit' lines."""
+    with _errors(debug):
+        folder = _bench_dir(bench_dir)
+        scripts = sorted(folder.glob("*.py")) if folder is not None and folder.is_dir() else []
+        scripts = [s for s in scripts if not s.name.startswith("_")]
+        if not scripts:
+            print(f"no benchmark scripts (bench/*.py) found{f' in {folder}' if folder else ''}")
+            return
+        if json_dir is not None:
+            try:
+                json_dir.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise OutputError(f"cannot write {json_dir}: {exc.strerror or exc}") from None
+        failed = []
+        for script in scripts:
+            cmd = [sys.executable, str(script)]
+            if json_dir is not None:
+                cmd += ["--json", str(json_dir / f"{script.stem}.json")]
+            print(f"# {script.name}", flush=True)
+            proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            for ln in proc.stdout.splitlines():
+                if ln.strip():
+                    print(ln, flush=True)
+            if proc.returncode != 0:
+                failed.append(script.name)
+                tail = "\n".join(proc.stderr.strip().splitlines()[-5:])
+                _err(f"error: {script.name} exited with code {proc.returncode}"
+                     + (f":\n{tail}" if tail else ""))
+        if failed:
+            raise typer.Exit(EXIT_FAILED)
+
+
+# ----------------------------------------------------------------------------- workbench
+def _workbench(module: str, func: str, command: str):
+    """``granular_mpc.validation.<module>.<func>``, or exit 3 with a clear message."""
+    import importlib
+
+    try:
+        mod = importlib.import_module(f"granular_mpc.validation.{module}")
+    except ModuleNotFoundError as exc:
+        if exc.name and exc.name.startswith("granular_mpc"):
+            mod = None
+        else:
+            raise
+    fn = getattr(mod, func, None) if mod is not None else None
+    if fn is None:
+        _err(f"error: 'granular-mpc {command}' is not available yet "
+             f"(granular_mpc.validation.{module}.{func} is not implemented in this version)")
+        raise typer.Exit(EXIT_UNAVAILABLE)
+    return fn
+
+
+def _parse_noise(items: list[str]) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for item in items:
+        key, eq, val = item.partition("=")
+        if not eq or not key.strip():
+            raise ConfigError(f"{item!r} must look like COLUMN_OR_PREFIX=STD (e.g. grf_=0.5)",
+                              key="--noise")
+        try:
+            out[key.strip()] = float(val)
+        except ValueError:
+            raise ConfigError(f"{item!r}: the standard deviation must be a number",
+                              key="--noise") from None
+        if out[key.strip()] < 0:
+            raise ConfigError(f"{item!r}: the standard deviation must be ≥ 0", key="--noise")
+    return out
+
+
+def _effects(items: list[str]):
+    from .config import EffectSpec
+    from .terrain import get_effect
+
+    specs = [EffectSpec.model_validate(e) for e in items]
+    for s in specs:
+        get_effect(s.name)  # unknown name → one clear error listing the registered ones
+    return specs
+
+
+EffectOpt = Annotated[Optional[list[str]], typer.Option(
+    "--effect", "-e", metavar="NAME[:k=v,…]", help="A registered physical effect (repeatable).")]
+
+
+@app.command()
+def synth(
+    config: Annotated[str, typer.Argument(help="Scenario YAML the plant is built from.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Data set folder to write (format v1).")],
+    effect: EffectOpt = None,
+    noise: Annotated[Optional[list[str]], typer.Option("--noise", metavar="PREFIX=STD", help="Gaussian noise std. dev. per column or column prefix, column units (repeatable), e.g. grf_=0.5.")] = None,
+    seed: Annotated[Optional[int], typer.Option("--seed", help="Random seed (default: the scenario's sim.seed).")] = None,
+    set_: SetOpt = None,
+    debug: DebugOpt = False,
+) -> None:
+    """Generate a measurement data set with the plant (+ extra effects, sensor noise)."""
+    from .scenario import find_scenario, load_scenario
+
+    fn = _workbench("synth", "synthesize", "synth")
+    with _errors(debug):
+        scenario = load_scenario(config, set_ or [])
+        fn(scenario, out, effects=_effects(effect or []), noise=_parse_noise(noise or []),
+           seed=scenario.sim.seed if seed is None else seed,
+           scenario_path=find_scenario(config))
+        print(f"wrote {out}")
+
+
+@app.command()
+def validate(
+    data_dir: Annotated[Path, typer.Argument(help="Measurement data set folder (format v1).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Report folder (report.json + figures).")],
+    model: Annotated[str, typer.Option("--model", help="granular, rigid or planar.")] = "granular",
+    effect: EffectOpt = None,
+    debug: DebugOpt = False,
+) -> None:
+    """Compare the model with measurements: DIR/report.json (RMSE by channel, phase, speed)."""
+    fn = _workbench("replay", "validate", "validate")
+    with _errors(debug):
+        if model not in ("granular", "rigid", "planar"):
+            raise ConfigError(f"unknown model {model!r}", key="--model",
+                              allowed="granular, rigid, planar")
+        fn(data_dir, out, model=model, effects=_effects(effect or []))
+        print(f"wrote {out / 'report.json'}")
+
+
+@app.command()
+def diagnose(
+    data_dir: Annotated[Path, typer.Argument(help="Measurement data set folder (format v1).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for diagnosis.json + figures.")],
+    debug: DebugOpt = False,
+) -> None:
+    """Find which physical effect the model misses: DIR/diagnosis.json."""
+    fn = _workbench("diagnose", "diagnose", "diagnose")
+    with _errors(debug):
+        fn(data_dir, out)
+        print(f"wrote {out / 'diagnosis.json'}")
+
+
+def main() -> None:
+    """Console entry point (``granular-mpc``)."""
+    app(prog_name="granular-mpc")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,266 @@
+"""The `granular-mpc` command line: runs, Ctrl-C, replays, bad input, file swaps.
+
+Real subprocesses where the behaviour depends on the process (exit codes, signals,
+tracebacks on stderr); typer's in-process runner for the many bad-input cases.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from granular_mpc.cli import app
+from granular_mpc.runlog import read_log
+from granular_mpc.scenario import load_scenario
+from granular_mpc.viz.meshcat import read_html_commands
+
+ROOT = Path(__file__).resolve().parent.parent
+SIM = ROOT / "sim"
+RIGID = str(SIM / "rigid_walk.yaml")
+SAND = str(SIM / "sand_walk.yaml")
+
+
+def cli(*args, timeout=300, cwd=None) -> subprocess.CompletedProcess:
+    """Run the console script (the one installed next to this interpreter)."""
+    exe = Path(sys.executable).with_name("granular-mpc")
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "granular_mpc.cli"]
+    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True,
+                          timeout=timeout, cwd=cwd)
+
+
+def invoke(*args):
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def test_console_script_is_installed():
+    exe = Path(sys.executable).with_name("granular-mpc")
+    assert exe.exists(), "pip install -e . should create the granular-mpc console script"
+    proc = cli("--help")
+    assert proc.returncode == 0
+    for command in ("run", "sweep", "view", "synth", "validate", "diagnose", "bench"):
+        assert command in proc.stdout
+
+
+def test_run_writes_the_run_folder(tmp_path):
+    out = tmp_path / "run"
+    proc = cli("run", RIGID, "--set", "sim.duration=0.6", "--html", "--out", out, "-q")
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["complete"] is True and summary["sim_time_s"] > 0
+    assert f"outputs:" in proc.stdout and "CoT:" in proc.stdout
+    assert len(list((out / "plots").glob("*.png"))) >= 4
+    assert (out / "animation.html").stat().st_size > 100_000
+    assert load_scenario(out / "config.resolved.yaml").sim.duration == 0.6
+
+
+def test_default_output_folder_is_runs_name_timestamp(tmp_path):
+    proc = cli("run", RIGID, "--set", "sim.duration=0.05", "--set", "output.plots=false", "-q",
+               cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    runs = list((tmp_path / "runs").iterdir())
+    assert len(runs) == 1 and runs[0].name.startswith("rigid_walk-")
+    assert (runs[0] / "summary.json").is_file()
+
+
+def test_sigint_halfway_leaves_a_replayable_log_and_an_incomplete_summary(tmp_path):
+    out = tmp_path / "interrupted"
+    exe = Path(sys.executable).with_name("granular-mpc")
+    proc = subprocess.Popen([str(exe), "run", str(SIM / "drop_sand.yaml"), "--set",
+                             "sim.duration=60", "--set", "output.flush_every=50",
+                             "--out", str(out), "-q"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.time() + 120
+        while len(list((out / "log").glob("part-*.parquet"))) < 2:
+            assert proc.poll() is None, proc.communicate()
+            assert time.time() < deadline, "no log part written"
+            time.sleep(0.1)
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "interrupted" in stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["complete"] is False
+    assert summary["reason"] == "interrupted by SIGINT"
+    log = read_log(out)
+    assert len(log) >= 100 and summary["sim_time_s"] < 60
+    page = tmp_path / "replay.html"
+    view = cli("view", out, "--html", page)
+    assert view.returncode == 0, view.stderr
+    commands = read_html_commands(page)
+    assert any(c.get("type") == "set_animation" for c in commands)
+
+
+def test_set_swaps_plant_and_controller_terrain_independently(tmp_path):
+    cases = {(): ("dry_sand", "plant"),
+             ("terrain=rigid",): ("rigid", "plant"),
+             ("controller.terrain=rigid",): ("dry_sand", "rigid"),
+             ("terrain=rigid", "controller.terrain=dry_sand"): ("rigid", "dry_sand")}
+    for overrides, (plant, ctrl) in cases.items():
+        sc = load_scenario(SAND, list(overrides))
+        assert sc.terrain.name == plant and sc.controller.terrain == ctrl
+        if ctrl == "plant":
+            assert sc.controller_terrain is None
+        else:
+            assert sc.controller_terrain.name == ctrl
+    # end to end: the summary and the resolved file say what each side used
+    out = tmp_path / "swap"
+    proc = cli("run", SAND, "--set", "controller.terrain=rigid", "--set", "sim.duration=0.1",
+               "--set", "output.plots=false", "--out", out, "-q")
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["terrain"] == "dry_sand" and summary["terrain_kind"] == "granular"
+    assert summary["controller_terrain_model"] == "rigid"
+    resolved = yaml.safe_load((out / "config.resolved.yaml").read_text())
+    assert resolved["terrain"]["kind"] == "granular"
+    assert resolved["controller_terrain"]["kind"] == "rigid"
+    # a resolved file swaps again: the inlined controller terrain is replaced
+    again = load_scenario(out / "config.resolved.yaml", ["controller.terrain=plant"])
+    assert again.controller_terrain is None
+
+
+# --------------------------------------------------------------------------- bad input
+def _write(tmp_path, name, text):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+BAD_INPUTS = {
+    "malformed YAML": (lambda d: ["run", _write(d, "a.yaml", "robot: yobogo10s\nterrain: [rigid\n")],
+                       "malformed YAML at line"),
+    "unknown key": (lambda d: ["run", _write(d, "b.yaml", "robot: yobogo10s\nterrain: rigid\ncomand: {speed: 0.2}\n")],
+                    "did you mean 'command'"),
+    "unknown nested key": (lambda d: ["run", _write(d, "c.yaml", "robot: yobogo10s\nterrain: rigid\nsim: {durration: 1}\n")],
+                           "sim.durration"),
+    "wrong type": (lambda d: ["run", _write(d, "d.yaml", "robot: yobogo10s\nterrain: rigid\nsim: {duration: long}\n")],
+                   "sim.duration"),
+    "out of range": (lambda d: ["run", RIGID, "--set", "sim.dt=-1"], "sim.dt"),
+    "override of a missing key": (lambda d: ["run", RIGID, "--set", "controller.mpc.horizn=5"],
+                                  "did you mean 'horizon'"),
+    "override without =": (lambda d: ["run", RIGID, "--set", "sim.duration"], "key.path=value"),
+    "missing robot file": (lambda d: ["run", _write(d, "e.yaml", "robot: no_such_bot\nterrain: rigid\n")],
+                           "robot file 'no_such_bot' not found"),
+    "missing terrain file": (lambda d: ["run", RIGID, "--set", "terrain=wet_clay"],
+                             "terrain file 'wet_clay' not found"),
+    "missing controller terrain file": (lambda d: ["run", RIGID, "--set", "controller.terrain=wet_clay"],
+                                        "controller.terrain"),
+    "missing scenario file": (lambda d: ["run", d / "nope.yaml"], "scenario file"),
+    "unwritable output folder": (lambda d: ["run", RIGID, "--out", _write(d, "f", "") / "sub"],
+                                 "cannot write the output folder"),
+    "sweep without sweep section": (lambda d: ["sweep", RIGID], "no 'sweep:' section"),
+    "unknown sweep grid key": (lambda d: ["sweep", str(SIM / "velocity_sweep.yaml"), "--set",
+                                          "sweep.grid={controller.gait.perod: [0.4]}"],
+                               "did you mean 'period'"),
+    "unknown backend": (lambda d: ["sweep", str(SIM / "velocity_sweep.yaml"), "--backend", "dask"],
+                        "unknown backend"),
+    "missing run folder": (lambda d: ["view", d / "no_run"], "no run folder"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_INPUTS))
+def test_bad_input_is_one_clear_message(case, tmp_path):
+    make_args, expected = BAD_INPUTS[case]
+    args = make_args(tmp_path)
+    res = invoke(*args)
+    assert res.exit_code == 2, (res.exit_code, res.output)
+    assert res.exception is None or isinstance(res.exception, SystemExit)
+    err = res.stderr
+    assert "Traceback" not in res.output
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert lines and lines[0].startswith("error: "), err
+    assert sum(ln.startswith("error:") for ln in lines) == 1
+    assert expected in err, err
+    assert res.stdout == ""
+
+
+def test_bad_input_in_a_real_process_has_no_traceback_unless_debug(tmp_path):
+    bad = _write(tmp_path, "bad.yaml", "robot: yobogo10s\nterrain: rigid\ncomand: {}\n")
+    proc = cli("run", bad)
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("error: ") and "Traceback" not in proc.stderr
+    assert "did you mean 'command'" in proc.stderr
+    debug = cli("run", bad, "--debug")
+    assert debug.returncode == 2 and "Traceback" in debug.stderr
+
+
+def test_workbench_commands_say_when_they_are_not_available(tmp_path):
+    import importlib.util
+
+    cases = [("synth", ["synth", RIGID, "--out", tmp_path / "ds"], "granular_mpc.validation.synth"),
+             ("validate", ["validate", tmp_path, "--out", tmp_path / "rep"], "granular_mpc.validation.replay"),
+             ("diagnose", ["diagnose", tmp_path, "--out", tmp_path / "dia"], "granular_mpc.validation.diagnose")]
+    checked = 0
+    for name, args, module in cases:
+        if importlib.util.find_spec(module) is not None:
+            continue          # built by now: its own tests cover it
+        res = invoke(*args)
+        assert res.exit_code == 3, res.output
+        assert "not available yet" in res.stderr and "Traceback" not in res.output
+        checked += 1
+    if checked == 0:
+        pytest.skip("synth, validate and diagnose are all implemented")
+
+
+def test_bench_runs_scripts_and_prints_their_lines(tmp_path):
+    bench = tmp_path / "bench"
+    bench.mkdir()
+    (bench / "speed.py").write_text(
+        "import json, sys\n"
+        "print('plant_step: 12.5 us')\n"
+        "if '--json' in sys.argv:\n"
+        "    open(sys.argv[sys.argv.index('--json') + 1], 'w').write(json.dumps({'plant_step': 12.5}))\n")
+    res = cli("bench", "--dir", bench, "--json", tmp_path / "figs")
+    assert res.returncode == 0, res.stderr
+    assert "plant_step: 12.5 us" in res.stdout
+    assert json.loads((tmp_path / "figs" / "speed.json").read_text()) == {"plant_step": 12.5}
+    (bench / "broken.py").write_text("raise SystemExit(4)\n")
+    res = cli("bench", "--dir", bench)
+    assert res.returncode == 1 and "broken.py exited with code 4" in res.stderr
+
+
+def test_readme_has_two_commands_and_ci_runs_the_test_one():
+    readme = (ROOT / "README.md").read_text()
+    commands = [ln.strip() for ln in readme.splitlines() if ln.strip().startswith("python3.11 -m venv")]
+    assert len(commands) == 2, commands
+    run_cmd, test_cmd = commands
+    assert "granular-mpc run sim/sand_walk.yaml" in run_cmd and "pytest" in test_cmd
+    ci = (ROOT / ".ci" / "run").read_text()
+    assert test_cmd in ci.splitlines()
+    assert "install-browser.sh" in ci and '"$rc" -eq 5' in ci
+    image = ROOT / "docs" / "img" / "sand_walk.png"
+    assert "docs/img/sand_walk.png" in readme and image.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_ci_script_fails_on_pytest_no_tests(tmp_path):
+    """.ci/run maps pytest's exit code 5 to a failure (checked with stand-in tools)."""
+    repo = tmp_path / "repo"
+    (repo / ".ci").mkdir(parents=True)
+    shutil.copy(ROOT / ".ci" / "run", repo / ".ci" / "run")
+    (repo / ".ci" / "install-browser.sh").write_text("exit 0\n")
+    fake = tmp_path / "bin"
+    fake.mkdir()
+    (fake / "python3.11").write_text(
+        "#!/bin/sh\nmkdir -p .venv/bin\n"
+        "printf '#!/bin/sh\\nexit 0\\n' > .venv/bin/pip\n"
+        "printf '#!/bin/sh\\nexit %s\\n' \"$FAKE_PYTEST_RC\" > .venv/bin/python\n"
+        "chmod +x .venv/bin/pip .venv/bin/python\n")
+    (fake / "python3.11").chmod(0o755)
+    for rc, expected in ((0, 0), (5, 1), (2, 2)):
+        env = dict(os.environ, PATH=f"{fake}:{os.environ['PATH']}", FAKE_PYTEST_RC=str(rc))
+        proc = subprocess.run(["bash", str(repo / ".ci" / "run")], capture_output=True,
+                              text=True, env=env, timeout=60)
+        assert proc.returncode == expected, (rc, proc.stdout, proc.stderr)
