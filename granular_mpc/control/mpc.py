@@ -21,8 +21,8 @@ forces against sinkage. Force constraints come from :mod:`.contact_model`.
 The QP: ``min ½ UᵀHU + gᵀU`` with one block of variables per *(step, foot in contact)*
 pair — the forces of that foot's contact points. Its size is fixed per controller: the
 largest number of such pairs any horizon of the gait can contain (N for a single-support
-gait, a few more with double support); unused blocks are padding held at zero. The ground
-polytope bounds each foot's total force; each contact point only pushes (0 ≤ f_z).
+gait, a few more with double support); unused blocks are padding held at zero. Each
+contact point carries its share of the ground polytope.
 """
 
 from __future__ import annotations
@@ -105,12 +105,12 @@ class CentroidalMPC:
         return self.max_pairs * self.nu_pair
 
     @property
-    def rows_per_foot(self) -> int:
-        return self.ground.polytope.G.shape[0]
+    def rows_per_pair(self) -> int:
+        return self.n_points * self.ground.polytope.G.shape[0]
 
     @property
     def n_in(self) -> int:
-        return self.max_pairs * self.rows_per_foot
+        return self.max_pairs * self.rows_per_pair
 
     def new_data(self) -> MPCData:
         return MPCData(ProxQPSolver(self.nu, 0, self.n_in, box=True, eps_abs=1e-4, max_iter=100))
@@ -196,8 +196,9 @@ class CentroidalMPC:
                 H[np.ix_(jz, jz)] += 2.0 * c.weight_sinkage * a * a
                 g[jz] += 2.0 * c.weight_sinkage * a * (z0 - a * F0)
         H = 0.5 * (H + H.T)
-        # constraints: the ground polytope on each foot's total force, unilateral points
-        poly = self.ground.polytope
+        # constraints: each contact point carries its share of the ground polytope (a
+        # point's friction / shear is bounded by its own normal force: no free moments)
+        poly = self.ground.polytope.scaled(1.0 / nps)
         Gw = poly.G @ Rz.T
         nr = Gw.shape[0]
         C = np.zeros((self.n_in, self.nu))
@@ -207,12 +208,12 @@ class CentroidalMPC:
         for j, (k, f) in enumerate(pairs):
             share = 1.0
             if capacity is not None:
-                share = min(max(capacity[k, f] / poly.f_max, 0.0), 1.0)
-            rows = slice(j * nr, (j + 1) * nr)
-            u[rows] = poly.h * share
+                share = min(max(capacity[k, f] / self.ground.polytope.f_max, 0.0), 1.0)
             for i in range(nps):
+                rows = slice((j * nps + i) * nr, (j * nps + i + 1) * nr)
                 col = j * npair + 3 * i
                 C[rows, col:col + 3] = Gw
+                u[rows] = poly.h * share
                 lb[col:col + 2] = -BIG
                 ub[col:col + 2] = BIG
                 ub[col + 2] = poly.f_max * share

@@ -1,0 +1,128 @@
+"""Gait schedule, Ruckig speed ramp and the capture-point foothold rule."""
+
+import math
+
+import numpy as np
+import pytest
+
+from granular_mpc.config import CommandConfig, FootholdConfig, GaitConfig
+from granular_mpc.control.gait import (LEFT, RIGHT, CommandRamp, GaitSchedule, foothold,
+                                       predict_com, predict_dcm)
+
+
+def test_paper_gait_is_alternating_single_support_after_the_weight_shift():
+    g = GaitSchedule(GaitConfig(period=0.4, swing_fraction=0.5, weight_shift=0.3))
+    assert g.contacts(0.1) == (True, True)          # weight shift
+    ts = np.arange(0.3, 5.0, 0.0005)
+    n_feet = np.array([sum(g.contacts(t)) for t in ts])
+    assert np.all(n_feet == 1)
+    # each leg: stance 0.2 s then swing 0.2 s
+    left = np.array([g.in_stance(t, LEFT) for t in ts])
+    switches = np.flatnonzero(np.diff(left.astype(int)))
+    assert np.allclose(np.diff(ts[switches]), 0.2, atol=1e-3)
+
+
+def test_double_support_share_matches_swing_fraction():
+    g = GaitSchedule(GaitConfig(period=0.4, swing_fraction=0.4, weight_shift=0.0))
+    ts = np.arange(0.0, 4.0, 0.0005)
+    both = np.mean([all(g.contacts(t)) for t in ts])
+    assert both == pytest.approx(1.0 - 2 * 0.4, abs=0.01)
+
+
+def test_phases_and_timers_are_consistent():
+    g = GaitSchedule(GaitConfig())
+    for t in np.arange(g.start, g.start + 2.0, 0.013):
+        for foot in (LEFT, RIGHT):
+            if g.in_stance(t, foot):
+                assert 0.0 <= g.stance_phase(t, foot) <= 1.0
+                assert g.time_to_touchdown(t, foot) == 0.0
+                assert g.time_to_liftoff(t, foot) == pytest.approx(
+                    (1.0 - g.stance_phase(t, foot)) * g.stance_duration, abs=1e-6)
+            else:
+                ttd = g.time_to_touchdown(t, foot)
+                assert g.in_stance(t + ttd + 1e-6, foot)
+                assert not g.in_stance(t + max(ttd - 1e-3, 0.0), foot) or ttd < 1e-3
+
+
+def test_speed_ramp_respects_acceleration_and_jerk_limits():
+    cfg = CommandConfig(speed=0.5, max_acceleration=0.4, max_jerk=1.5, start_delay=0.5)
+    ramp = CommandRamp(cfg, 0.002)
+    ts = np.arange(0.0, cfg.start_delay + ramp.ramp_duration + 1.0, 0.001)
+    v = np.array([ramp.reference(t)[1][0] for t in ts])
+    p = np.array([ramp.reference(t)[0][0] for t in ts])
+    assert np.all(v[ts < cfg.start_delay] == 0.0)
+    assert v[-1] == pytest.approx(0.5, abs=1e-9)
+    acc = np.diff(v) / 0.001
+    jerk = np.diff(acc) / 0.001
+    assert acc.max() <= 0.4 + 1e-6
+    assert np.abs(jerk).max() <= 1.5 + 1e-3
+    np.testing.assert_allclose(np.diff(p) / 0.001, 0.5 * (v[1:] + v[:-1]), atol=1e-4)
+
+
+def lip_walk(rule_cfg, v_cmd, omega, T, steps, y0=0.0, vy0=0.0):
+    """Independent LIP simulation (fine Euler) with instantaneous support exchange at each
+    touchdown and footholds from the rule under test."""
+    com = np.array([0.0, y0])
+    vel = np.array([0.0, vy0])
+    foot = np.array([0.0, 0.5 * rule_cfg.step_width])       # start on the left foot
+    side = -1.0                                               # the right leg lands next
+    feet = [foot.copy()]
+    h = 1e-4
+    for _ in range(steps):
+        for _ in range(int(round(T / h))):
+            acc = omega ** 2 * (com - foot)
+            vel = vel + h * acc
+            com = com + h * vel
+        dcm = com + vel / omega
+        foot = foothold(rule_cfg, dcm=dcm, v_cmd=np.array([v_cmd, 0.0, 0.0]),
+                        stance_duration=T, omega=omega, lateral_sign=side, y_error=com[1])
+        feet.append(foot.copy())
+        side = -side
+    return np.array(feet), com, vel
+
+
+def test_dcm_foothold_gives_the_commanded_speed_and_step_width_in_a_lip():
+    cfg = FootholdConfig(step_width=0.16, k_position=0.0)
+    omega, T, v = math.sqrt(9.81 / 0.41), 0.2, 0.35
+    feet, com, vel = lip_walk(cfg, v, omega, T, steps=60)
+    strides = np.diff(feet[-20:, 0])
+    assert np.allclose(strides, v * T, atol=2e-3)          # speed = stride / T
+    widths = np.abs(np.diff(feet[-20:, 1]))
+    assert np.allclose(widths, 0.16, atol=2e-3)
+
+
+def test_walking_line_feedback_removes_lateral_drift():
+    omega, T = math.sqrt(9.81 / 0.41), 0.2
+    _, com_free, _ = lip_walk(FootholdConfig(step_width=0.16, k_position=0.0), 0.3, omega, T, 80)
+    _, com_fb, _ = lip_walk(FootholdConfig(step_width=0.16, k_position=0.5), 0.3, omega, T, 80)
+    assert abs(com_free[1]) > 0.05          # the DCM rule alone lets the mean wander
+    assert abs(com_fb[1]) < 0.02            # the line term brings it back
+
+
+def test_dcm_foothold_recovers_from_a_lateral_push():
+    cfg = FootholdConfig(step_width=0.16)
+    omega, T = math.sqrt(9.81 / 0.41), 0.2
+    feet, com, vel = lip_walk(cfg, 0.2, omega, T, steps=40, vy0=0.4)
+    assert abs(vel[1]) < 0.5                                # not diverging
+    widths = np.abs(np.diff(feet[-10:, 1]))
+    assert np.allclose(widths, 0.16, atol=0.01)
+
+
+def test_lateral_clip_keeps_the_foot_within_reach_of_the_ground_force():
+    cfg = FootholdConfig(step_width=0.19)
+    p = foothold(cfg, dcm=np.array([0.0, -0.3]), v_cmd=np.zeros(3), stance_duration=0.2,
+                 omega=4.9, lateral_sign=-1.0, com_y=0.0, max_lateral=0.12)
+    assert p[1] == pytest.approx(-0.12)
+
+
+def test_lip_predictions_match_numerical_integration():
+    omega, dt = 4.9, 0.17
+    com, vel, p = np.array([0.02, -0.03]), np.array([0.3, 0.1]), np.array([0.0, 0.05])
+    c, v = com.copy(), vel.copy()
+    h = 1e-5
+    for _ in range(int(round(dt / h))):
+        v = v + h * omega ** 2 * (c - p)
+        c = c + h * v
+    np.testing.assert_allclose(predict_com(com, vel, p, omega, dt), c, atol=1e-4)
+    np.testing.assert_allclose(predict_dcm(com + vel / omega, p, omega, dt), c + v / omega,
+                               atol=1e-4)

@@ -1,0 +1,174 @@
+"""Centroidal-plus-sinkage MPC: discretisation, condensation, constraints, fallback."""
+
+import math
+
+import numpy as np
+import pytest
+
+from granular_mpc.config import MPCConfig
+from granular_mpc.control.contact_model import ground_model
+from granular_mpc.control.mpc import CentroidalMPC, rot_z, skew
+from granular_mpc.control.solvers.proxqp import QPSolution, QPStatus
+
+MASS = 10.64
+INERTIA = np.array([[0.17, 0.0, 0.02], [0.0, 0.16, 0.0], [0.02, 0.0, 0.08]])
+
+
+def make(terrain, N=6, **cfg):
+    c = MPCConfig(horizon=N, dt=0.04, **cfg)
+    return CentroidalMPC(c, MASS, INERTIA, 9.81, ground_model(terrain, c), n_points=2,
+                         max_pairs=N + 2)
+
+
+def scenario(N, yaw=0.1):
+    rng = np.random.default_rng(3)
+    x0 = np.concatenate([[0.01, -0.02, yaw], [0.0, 0.01, 0.40], rng.normal(0, 0.1, 3),
+                         [0.2, 0.05, 0.0]])
+    x_ref = np.tile(x0, (N, 1))
+    x_ref[:, 5] = 0.41
+    x_ref[:, 2] = yaw
+    contacts = np.zeros((N, 2), dtype=bool)
+    contacts[: N // 2, 0] = True
+    contacts[N // 2 - 1:, 1] = True                     # one double-support step
+    points = np.zeros((N, 2, 2, 3))
+    for k in range(N):
+        points[k, 0] = [[0.02, 0.08, -0.01], [0.02, 0.11, -0.01]]
+        points[k, 1] = [[0.10, -0.11, -0.01], [0.10, -0.08, -0.01]]
+    load = contacts * (MASS * 9.81) / np.maximum(contacts.sum(axis=1, keepdims=True), 1)
+    return x0, x_ref, contacts, points, load
+
+
+def srb_rhs(x, f_list, yaw):
+    """Continuous linearised single-rigid-body model (the MPC's own assumptions)."""
+    Rz = rot_z(yaw)
+    I_W = Rz @ INERTIA @ Rz.T
+    dx = np.zeros(12)
+    dx[0:3] = Rz.T @ x[6:9]
+    dx[3:6] = x[9:12]
+    tau = sum(np.cross(r, f) for r, f in f_list)
+    dx[6:9] = np.linalg.solve(I_W, tau)
+    dx[9:12] = sum(f for _, f in f_list) / MASS + np.array([0, 0, -9.81])
+    return dx
+
+
+def test_plan_equals_rk4_of_the_continuous_model(sand):
+    """The condensed prediction (exact ZOH discretisation, A² = 0) equals a fine RK4
+    integration of the continuous SRB model under the planned piecewise-constant forces."""
+    N = 6
+    mpc = make(sand, N)
+    data = mpc.new_data()
+    x0, x_ref, contacts, points, load = scenario(N)
+    plan = mpc.solve(data, t=0.0, x0=x0, x_ref=x_ref, contacts=contacts, points=points,
+                     nominal_load=load)
+    assert plan.status.ok
+    x = x0.copy()
+    h = 0.04 / 200
+    for k in range(N):
+        f_list = [(points[k, f, i] - x_ref[k, 3:6], plan.forces[k, f, i])
+                  for f in (0, 1) if contacts[k, f] for i in range(2)]
+        for _ in range(200):
+            k1 = srb_rhs(x, f_list, x_ref[0, 2])
+            k2 = srb_rhs(x + 0.5 * h * k1, f_list, x_ref[0, 2])
+            k3 = srb_rhs(x + 0.5 * h * k2, f_list, x_ref[0, 2])
+            k4 = srb_rhs(x + h * k3, f_list, x_ref[0, 2])
+            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        np.testing.assert_allclose(plan.states[k], x, atol=1e-8)
+
+
+def test_plan_respects_the_ground_and_the_schedule(sand, rigid):
+    N = 6
+    for terrain in (sand, rigid):
+        mpc = make(terrain, N)
+        x0, x_ref, contacts, points, load = scenario(N)
+        plan = mpc.solve(mpc.new_data(), t=0.0, x0=x0, x_ref=x_ref, contacts=contacts,
+                         points=points, nominal_load=load)
+        assert plan.status.ok
+        poly = mpc.ground.polytope
+        Rz = rot_z(x_ref[0, 2])
+        for k in range(N):
+            for f in (0, 1):
+                F = plan.forces[k, f]
+                if not contacts[k, f]:
+                    assert np.all(F == 0.0)
+                    continue
+                assert np.all(F[:, 2] >= -1e-5)                 # each point only pushes
+                half = poly.scaled(0.5)
+                for pt in F:                                     # each point's own share
+                    local = Rz.T @ pt
+                    assert np.all(half.G @ local <= half.h + 1e-3)
+                    assert local[2] <= half.f_max + 1e-3
+        # the plan supports the robot: mean vertical force ≈ weight
+        fz = plan.forces[..., 2].sum(axis=(1, 2))
+        assert fz.mean() == pytest.approx(MASS * 9.81, rel=0.15)
+
+
+def test_capacity_scaling_bounds_the_normal_force(sand):
+    N = 6
+    mpc = make(sand, N)
+    x0, x_ref, contacts, points, load = scenario(N)
+    cap = np.full((N, 2), 30.0)
+    plan = mpc.solve(mpc.new_data(), t=0.0, x0=x0, x_ref=x_ref, contacts=contacts,
+                     points=points, nominal_load=load, capacity=cap)
+    assert plan.forces[..., 2].sum(axis=2).max() <= 30.0 + 1e-3
+
+
+def test_failed_solve_falls_back_to_the_shifted_plan(sand):
+    N = 6
+    mpc = make(sand, N)
+    data = mpc.new_data()
+    x0, x_ref, contacts, points, load = scenario(N)
+    first = mpc.solve(data, t=0.0, x0=x0, x_ref=x_ref, contacts=contacts, points=points,
+                      nominal_load=load)
+    data.solver.solve = lambda p: QPSolution(np.zeros(mpc.nu), QPStatus.MAX_ITER)
+    c2 = np.roll(contacts, -1, axis=0)
+    c2[-1] = contacts[-1]
+    plan = mpc.solve(data, t=0.04, x0=x0, x_ref=x_ref, contacts=c2, points=points,
+                     nominal_load=load)
+    assert data.failures == 1
+    assert plan.fallback.startswith("shifted")
+    np.testing.assert_allclose(plan.forces[0, 0], first.forces[1, 0])
+    data.last = None
+    plan = mpc.solve(data, t=0.08, x0=x0, x_ref=x_ref, contacts=contacts, points=points,
+                     nominal_load=load)
+    assert plan.fallback == "nominal"
+    assert plan.forces[0, 0, :, 2].sum() == pytest.approx(load[0, 0])
+
+
+def test_granular_polytope_lies_inside_the_rft_yield_curve(sand):
+    """Every force the MPC may ask of sand at the allowed sinkage is one the medium holds:
+    the sagittal polytope's vertices are inside the closed-form yield curve at z_max."""
+    gm = ground_model(sand, MPCConfig())
+    z = min(MPCConfig().max_sinkage, 0.95 * sand.config.layer_depth)
+    curve = []
+    for g in np.linspace(-math.pi / 2, math.pi / 2, 721):
+        r = sand.foot_forces(z, 0.0, math.cos(g), -math.sin(g))
+        curve.append((abs(r.f_h), r.f_z))
+    curve = np.array(curve)
+    G, h, fmax = gm.polytope.G, gm.polytope.h, gm.polytope.f_max
+    # sagittal vertices of {|F_h| ≤ μ F_z, |F_h| ≤ κ (F_cap − F_z), F_z ≤ F_cap}
+    mu, kappa = -G[0, 2], G[2, 2]
+    fz_corner = kappa * fmax / (mu + kappa)
+    vertices = [(0.0, 0.0), (mu * fz_corner, fz_corner), (0.0, fmax)]
+    for fh, fz in vertices:
+        # inside: some yield point carries at least this vertical force and this shear
+        ok = np.any((curve[:, 1] >= fz - 1e-6) & (curve[:, 0] >= fh - 1e-6)) or fh == 0.0
+        assert ok, (fh, fz)
+    assert fmax == pytest.approx(sand.vertical_capacity(z), rel=1e-6)
+
+
+def test_sinkage_prediction_is_plastic(sand):
+    N = 6
+    mpc = make(sand, N)
+    forces = np.zeros((N, 2, 2, 3))
+    forces[:, 0, :, 2] = np.array([20, 60, 100, 50, 10, 80])[:, None] / 2
+    contacts = np.zeros((N, 2), dtype=bool)
+    contacts[:, 0] = True
+    z = mpc._predicted_sinkage(forces, contacts)[:, 0]
+    assert np.all(np.diff(z) >= 0.0)                      # never comes back up
+    assert z[2] == pytest.approx(mpc.ground.sinkage(100.0))
+    assert z[-1] == pytest.approx(z[2])
+
+
+def test_skew_is_the_cross_product():
+    r, f = np.array([0.1, -0.2, 0.3]), np.array([2.0, 1.0, -1.0])
+    np.testing.assert_allclose(skew(r) @ f, np.cross(r, f))

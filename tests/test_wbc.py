@@ -1,0 +1,96 @@
+"""Whole-body QP: its torques and forces satisfy the rigid-body dynamics, respect the
+limits, keep swing feet force-free and respect the sand's present capacity."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from granular_mpc.config import CommandConfig, ControllerConfig
+from granular_mpc.control.controller import WalkingController
+from granular_mpc.control.wbc import WBCReference
+from granular_mpc.robot.kinematics import balanced_stance
+
+
+def reference(ctrl, q, stance, forces, force_cap=None):
+    z3 = np.zeros((2, 3))
+    com = ctrl.biped.com(q)
+    return WBCReference(com=com, com_vel=np.zeros(3), com_acc=np.zeros(3),
+                        R_trunk=np.eye(3), omega=np.zeros(3), stance=stance,
+                        forces=forces, swing_pos=z3 + [0.0, 0.0, 0.1], swing_vel=z3,
+                        swing_acc=z3, sink_accel=np.zeros(2), force_cap=force_cap)
+
+
+@pytest.fixture(scope="module")
+def setup(biped, rigid):
+    ctrl = WalkingController.build(ControllerConfig(), CommandConfig(), biped, rigid)
+    q = balanced_stance(biped)
+    rng = np.random.default_rng(2)
+    v = rng.normal(0.0, 0.05, biped.model.nv)
+    return ctrl, q, v
+
+
+def test_solution_satisfies_the_floating_base_dynamics(setup, biped):
+    ctrl, q, v = setup
+    data = ctrl.wbc.new_data()
+    data.keep_residuals = True
+    forces = np.zeros((2, 2, 3))
+    forces[0, :, 2] = biped.weight / 2
+    pd = data.pin
+    pin.framesForwardKinematics(biped.model, pd, q)
+    feet = ctrl.foot_points(pd)
+    tau = ctrl.wbc.solve(data, q, v, reference(ctrl, q, (True, False), forces), feet)
+    assert data.last_status.ok
+    x = data.solver._qp.results.x
+    nv = biped.model.nv
+    qdd, f = x[:nv], x[nv:].reshape(2, 2, 3)
+    # independent: ABA with the solution's torques and contact forces as external forces
+    m = biped.model
+    d = m.createData()
+    pin.framesForwardKinematics(m, d, q)
+    tau_full = np.zeros(nv)
+    tau_full[biped.idx_v] = tau
+    J_ext = np.zeros(nv)
+    pin.computeJointJacobians(m, d, q)
+    for i, side in enumerate(("left", "right")):
+        J6 = pin.getFrameJacobian(m, d, biped.foot_frame[side], pin.LOCAL_WORLD_ALIGNED)
+        for k, r in enumerate(feet[i].offsets):
+            Jp = J6[:3] - pin.skew(r) @ J6[3:]
+            J_ext += Jp.T @ f[i, k]
+    qdd_aba = pin.aba(m, d, q, v, tau_full + J_ext)
+    np.testing.assert_allclose(qdd, qdd_aba, atol=1e-4)
+    assert np.all(np.abs(tau) <= biped.torque_limits + 1e-9)
+    np.testing.assert_allclose(f[1], 0.0, atol=1e-4)   # swing foot: zero within the QP tolerance
+    assert np.all(f[0, :, 2] >= -1e-6)
+
+
+def test_force_cap_limits_the_loading_foot_on_sand(biped, sand):
+    ctrl = WalkingController.build(ControllerConfig(), CommandConfig(), biped, sand)
+    q = balanced_stance(biped, clearance=-0.002)
+    data = ctrl.wbc.new_data()
+    pd = data.pin
+    pin.framesForwardKinematics(biped.model, pd, q)
+    feet = ctrl.foot_points(pd)
+    forces = np.zeros((2, 2, 3))
+    forces[:, :, 2] = biped.weight / 4
+    cap = np.array([15.0, 200.0])
+    ctrl.wbc.solve(data, q, np.zeros(biped.model.nv),
+                   reference(ctrl, q, (True, True), forces, force_cap=cap), feet)
+    f = data.solver._qp.results.x[biped.model.nv:].reshape(2, 2, 3)
+    assert f[0, :, 2].sum() <= 15.0 + 1e-4
+
+
+def test_a_failed_qp_holds_the_previous_torques(setup, biped):
+    ctrl, q, v = setup
+    data = ctrl.wbc.new_data()
+    forces = np.zeros((2, 2, 3))
+    forces[0, :, 2] = biped.weight / 2
+    pd = data.pin
+    pin.framesForwardKinematics(biped.model, pd, q)
+    feet = ctrl.foot_points(pd)
+    ref = reference(ctrl, q, (True, False), forces)
+    tau0 = ctrl.wbc.solve(data, q, v, ref, feet)
+    from granular_mpc.control.solvers.proxqp import QPSolution, QPStatus
+    data.solver.solve = lambda p: QPSolution(np.zeros(ctrl.wbc.n), QPStatus.PRIMAL_INFEASIBLE)
+    tau1 = ctrl.wbc.solve(data, q, v, ref, feet)
+    assert data.failures == 1
+    np.testing.assert_allclose(tau1, tau0)
