@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import types
 from pathlib import Path
 from typing import Annotated, Any, Literal, Mapping, Sequence, Union, get_args, get_origin
 
@@ -76,7 +77,7 @@ def _unwrap(tp: Any, part: Any) -> Any:
     if origin in (dict, Mapping) and isinstance(part, str):
         args = get_args(tp)
         return _strip(args[1]) if len(args) == 2 else None
-    if origin is Union or str(origin) == "types.UnionType":
+    if _is_union(origin):
         for arg in get_args(tp):
             arg = _strip(arg)
             if isinstance(arg, type) and issubclass(arg, BaseModel):
@@ -89,6 +90,11 @@ def _unwrap(tp: Any, part: Any) -> Any:
             if found is not None:
                 return found
     return None
+
+
+def _is_union(origin: Any) -> bool:
+    """``typing.Union[...]`` or a PEP 604 ``X | Y``."""
+    return origin is Union or origin is types.UnionType
 
 
 def _strip(tp: Any) -> Any:
@@ -105,7 +111,11 @@ def _is_tag(model: type[BaseModel], loc: Sequence[Any], i: int) -> bool:
         if parent is None:
             return False
     origin = get_origin(parent)
-    return origin is Union or str(origin) == "types.UnionType"
+    if not _is_union(origin):
+        return False
+    # only discriminated unions (members with a ``kind`` tag) insert the tag in the loc
+    return any(isinstance(_strip(a), type) and issubclass(_strip(a), BaseModel)
+               and "kind" in _strip(a).model_fields for a in get_args(parent))
 
 
 def validate(model: type[BaseModel], data: Any, *, source: str = "", prefix: str = ""):
@@ -148,7 +158,9 @@ def validate(model: type[BaseModel], data: Any, *, source: str = "", prefix: str
             messages.append(line)
         text = messages[0] if len(messages) == 1 else (
             f"{len(messages)} problems:\n  - " + "\n  - ".join(messages))
-        err = ConfigError(text, value=first_value, allowed=allowed_first, source=source)
+        # the allowed values are already in the text: keep them as data only
+        err = ConfigError(text, value=first_value, source=source)
+        err.allowed = allowed_first
         err.key = first_key
         raise err from None
 
@@ -456,7 +468,7 @@ def _fields_of(tp: Any) -> dict[str, Any] | None:
     if isinstance(tp, type) and issubclass(tp, BaseModel):
         return {k: _strip(f.annotation) for k, f in tp.model_fields.items()}
     origin = get_origin(tp)
-    if origin is Union or str(origin) == "types.UnionType":
+    if _is_union(origin):
         merged: dict[str, Any] = {}
         for arg in get_args(tp):
             sub = _fields_of(arg)
@@ -511,7 +523,7 @@ class SwingConfig(StrictModel):
 class FootholdConfig(StrictModel):
     """Capture-point (DCM) foothold with a speed-proportional offset, see control/gait.py."""
 
-    step_width: PositiveFloat = Field(0.19, description="Nominal lateral distance between footholds [m].")
+    step_width: PositiveFloat = Field(0.12, description="Nominal lateral distance between footholds [m] (hips are 0.19 m apart: a narrower stance shortens the yaw lever of the fore-aft ground force, see docs/controller.md).")
     lateral_margin: float = Field(0.6, gt=0.0, le=1.0, description="Step width is narrowed so the gait's lateral force stays within this share of the ground's lateral capacity [-].")
     k_velocity: float = Field(0.0, ge=-0.9, le=2.0, description="Extra scale of the speed offset [-].")
     k_position: NonNegFloat = Field(0.5, description="Walking-line correction: foothold shift per metre off the line per second of stance [1/s].")
@@ -541,7 +553,7 @@ class WBCConfig(StrictModel):
     """Whole-body QP weights and task gains (see control/wbc.py)."""
 
     rate_hz: float = Field(500.0, gt=0.0, le=5000.0, description="WBC rate [Hz] (torques held between ticks).")
-    w_orientation: list[NonNegFloat] = Field([10.0, 10.0, 2.0], min_length=3, max_length=3,
+    w_orientation: list[NonNegFloat] = Field([10.0, 10.0, 5.0], min_length=3, max_length=3,
                                              description="Trunk roll, pitch, yaw task weights. Yaw is weak: without a hip-yaw joint the trunk's yaw is the stance foot's, which only rotational slip can change.")
     w_com: NonNegFloat = 20.0
     w_swing: NonNegFloat = 100.0

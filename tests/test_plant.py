@@ -274,3 +274,30 @@ def test_nan_base_wrench_raises_plant_diverged(biped, rigid):
     with pytest.raises(PlantDivergedError) as err:
         plant.step(d)
     assert err.value.reason == "non-finite"
+
+
+def test_joint_damping_adds_minus_b_qdot():
+    """robot.joint_damping acts as a viscous joint torque −b q̇ (checked via M⁻¹)."""
+    import pinocchio as pin
+
+    from granular_mpc.config import SimConfig, load_robot, load_terrain
+    from granular_mpc.dynamics import Plant
+    from granular_mpc.robot import Biped
+    from granular_mpc.terrain import build_terrain
+
+    base = load_robot()
+    damped = base.model_copy(update={"joint_damping": 0.5})
+    far = load_terrain("rigid", surface_height=-10.0)
+    q = Biped.from_config(base).standing_configuration()
+    v = np.zeros(12)
+    v[6:] = [0.3, -1.0, 2.0, 0.5, 0.0, -0.7]
+    acc = []
+    for cfg in (base, damped):
+        b = Biped.from_config(cfg)
+        plant = Plant(b, build_terrain(far, cfg), SimConfig())
+        d = plant.new_data(q, v)
+        acc.append(plant.forward(d, d.q, d.v))
+    b = Biped.from_config(base)
+    minv = pin.computeMinverse(b.model, b.create_data(), q)
+    expected = minv @ np.r_[np.zeros(6), -0.5 * v[6:]]
+    np.testing.assert_allclose(acc[1] - acc[0], expected, atol=1e-9)

@@ -46,11 +46,21 @@ def _quat_matrix(quat_xyzw: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Plant:
-    """Immutable plant model: robot, terrain, step. State lives in :class:`PlantData`."""
+    """Immutable plant model: robot, terrain, step. State lives in :class:`PlantData`.
+
+    Attributes:
+        biped, terrain, sim: robot, plant terrain, step settings.
+        joint_effects: joint-effect hook, empty (off) by default: callables
+            ``(q_a [rad], dq_a [rad/s]) -> tau_a [N·m]`` (actuator order) whose sum is added
+            to the actuator torques in :meth:`forward`, at the state being evaluated (e.g.
+            ``granular_mpc.terrain.effects_library.joint_friction``). The held command
+            ``d.tau`` (what a motor-current torque sensor reports) is not changed.
+    """
 
     biped: Biped
     terrain: TerrainModel
     sim: SimConfig = field(default_factory=SimConfig)
+    joint_effects: tuple = ()
 
     def __post_init__(self) -> None:
         if self.terrain.foot != self.biped.config.foot:
@@ -110,6 +120,14 @@ class Plant:
             tau[self._iv] += np.where(over != 0.0, -self.STOP_K * over - self.STOP_D * va, 0.0)
         else:
             tau = d.tau
+        if self._joint_damping > 0.0:          # viscous joint damping (robot.joint_damping)
+            tau = tau.copy()
+            tau[self._iv] -= self._joint_damping * v[self._iv]
+        if self.joint_effects:                 # joint-effect hook (e.g. joint friction)
+            qa, va = q[self._iq], v[self._iv]
+            tau = tau.copy()
+            for fn in self.joint_effects:
+                tau[self._iv] += fn(qa, va)
         w = d.base_wrench
         if w is None:
             d.fext[1] = _ZERO_FORCE
@@ -124,6 +142,10 @@ class Plant:
     #: joint end-stop stiffness [N·m/rad] and damping [N·m·s/rad]
     STOP_K = 500.0
     STOP_D = 5.0
+
+    @property
+    def _joint_damping(self) -> float:
+        return self.biped.config.joint_damping
 
     @property
     def _iq(self) -> np.ndarray:

@@ -182,3 +182,6 @@ def inertial_drag(o, s: PatchState, p):
 
 __all__ = ["Param", "PatchState", "Effect", "register_effect", "get_effect",
            "registered_effects", "load_effect_file", "inertial_drag"]
+
+# the effects library (cohesion, depth hardening, … and the joint / sensor / geometry kinds)
+from . import effects_library  # noqa: E402,F401  (registers the library effects)

@@ -1,0 +1,401 @@
+"""From a measurement data set to replayable stance windows (multiple shooting).
+
+Every complete stance phase of a data set (a maximal run of one ``left`` / ``right``
+label, touchdown and lift-off both recorded) becomes a :class:`StanceWindow`: the
+measured state at its first sample, the measured torques over it, the initial contact
+state of both feet, and the measured channels to compare a replay with.
+
+State estimation (offline, so non-causal smoothing is fine):
+
+* joint angles, trunk position and orientation: Savitzky–Golay smoothing (window
+  ``smooth_window`` samples, quadratic) of the measured columns; the quaternion is
+  smoothed component-wise and renormalised;
+* joint rates: Savitzky–Golay derivative of the measured angles (the ``dq_*`` columns of
+  a differentiated encoder are noisier than the derivative of a local fit);
+* trunk linear and angular velocity: Savitzky–Golay smoothing of ``base_v*`` / ``base_w*``;
+* ``grf_*`` and ``intrusion_*`` are smoothed *within* each stance run (they switch feet
+  at the label change).
+
+**Local frame.** Each window is replayed in a frame translated so that the free surface
+under the stance foot's touchdown point is the origin: motion-capture offsets and the
+unknown height of the sand surface in the world frame then cancel, and sloped or uneven
+ground is handled stance by stance. The translation is stored (``origin``).
+
+**Initial contacts.** The stance (leading) foot starts *fresh* when its measured
+intrusion and force at the first sample are ≈ 0 (the stance starts at touchdown), else
+buried at its measured intrusion with its elastic displacement set from its measured
+force. The other (trailing) foot is in contact when the previous run was its stance: it
+starts buried at its last measured intrusion, loaded with its last measured force, with
+its deepest depth and its time in stance from that run. Each foot gets its own free
+surface at its measured depth below its contact point (per-foot ``surface_height``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+import pandas as pd
+import pinocchio as pin
+
+from ..robot.model import SIDES, Biped
+from .dataformat import Dataset, stance_phases
+
+#: the channels a replay is scored on (format-v1 names)
+AXES = ("x", "y", "z")
+
+
+def channel_names(joint_names: Sequence[str]) -> list[str]:
+    """Scored channels: each joint angle, GRF x/y/z, intrusion x/y/z."""
+    return ([f"q_{j}" for j in joint_names] + [f"grf_{a}" for a in AXES]
+            + [f"intrusion_{a}" for a in AXES])
+
+
+CHANNEL_UNITS = {"q": "rad", "grf": "N", "intrusion": "m"}
+
+
+def channel_unit(ch: str) -> str:
+    return CHANNEL_UNITS.get(ch.split("_")[0], "")
+
+
+@dataclass(frozen=True)
+class FootInit:
+    """Initial contact state of one foot in the local frame.
+
+    Attributes:
+        in_contact: the foot starts in contact.
+        surface: free-surface height under the foot [m] (local frame, plane through it).
+        depth: depth of the contact point below that surface [m].
+        point: contact point (mean over patches) at the window start [m] (local frame).
+        c0: touchdown point per patch [m] (local frame), shape (n_patches, 3).
+        e: elastic displacement per patch [m] (−F/(n K)), shape (n_patches, 3).
+        force: measured force on the foot [N] (world axes).
+        depth_max: deepest depth since touchdown [m].
+        t_stance: time since touchdown [s].
+    """
+
+    in_contact: bool
+    surface: float
+    depth: float
+    point: np.ndarray
+    c0: np.ndarray
+    e: np.ndarray
+    force: np.ndarray
+    depth_max: float
+    t_stance: float
+
+
+@dataclass(frozen=True)
+class StanceWindow:
+    """One complete stance phase, ready to replay (all positions in the local frame).
+
+    Attributes:
+        index: position in the list of windows.
+        trial: trial name; ``speed``: commanded speed [m/s].
+        side: stance foot (``left`` / ``right``); ``foot``: its index (0 left, 1 right).
+        row_start, row_stop: positional rows of the predicted (scored) samples in the
+            trial (stop exclusive); the replay starts one sample before ``row_start``.
+        time: times of the scored samples from the start of the stance phase [s], (n,).
+        phase: stance phase [%], shape (n,).
+        q0, v0: initial configuration (13) and velocity (12), Pinocchio conventions.
+        tau: measured actuator torques [N·m], shape (n, 6): ``tau[k]`` is held over the
+            sample interval that ends at scored sample k.
+        feet: initial contact state of (left, right).
+        origin: world position of the local-frame origin [m].
+        touchdown_W: world position of the stance foot's touchdown point on the free
+            surface (forward kinematics of the measured state + measured intrusion) [m].
+        meas: measured channels (format-v1 names) → (n,) arrays.
+        features: measured state variables for localisation → (n,) arrays.
+    """
+
+    index: int
+    trial: str
+    speed: float
+    side: str
+    foot: int
+    row_start: int
+    row_stop: int
+    time: np.ndarray
+    phase: np.ndarray
+    q0: np.ndarray
+    v0: np.ndarray
+    tau: np.ndarray
+    feet: tuple
+    origin: np.ndarray
+    touchdown_W: np.ndarray
+    meas: dict
+    features: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return int(self.time.size)
+
+
+def _savgol(x: np.ndarray, window: int, deriv: int = 0, delta: float = 1.0) -> np.ndarray:
+    from scipy.signal import savgol_filter
+
+    n = x.shape[0]
+    w = min(window, n if n % 2 == 1 else n - 1)
+    if w < 3:
+        if deriv == 0 or n < 2:
+            return x.copy() if deriv == 0 else np.zeros_like(x)
+        return np.gradient(x, delta, axis=0)
+    poly = min(2, w - 1)
+    return savgol_filter(x, w, poly, deriv=deriv, delta=delta, axis=0, mode="interp")
+
+
+def patch_points(biped: Biped, oMf: pin.SE3) -> np.ndarray:
+    """Lowest sole point of each slice (patch) of a foot at placement ``oMf`` [m] (W),
+    shape (n_slices, 3) — the float twin of :func:`granular_mpc.terrain.contact.slice_geometry`."""
+    foot = biped.config.foot
+    R = oMf.rotation
+    e_x, e_y, e_z = R[:, 0], R[:, 1], R[:, 2]
+    psi_low = math.atan2(-e_x[2], e_z[2])
+    psi = min(max(psi_low, -foot.half_angle), foot.half_angle)
+    base = oMf.translation + foot.radius * math.sin(psi) * e_x - foot.radius * math.cos(psi) * e_z
+    return np.array([base + y * e_y for y in biped.slice_offsets])
+
+
+def foot_pitch(oMf: pin.SE3) -> float:
+    """ψ_c: angle from world-down to the foot's −z axis, positive toward its heading [rad]."""
+    R = oMf.rotation
+    return -math.atan2(-R[2, 0], R[2, 2])
+
+
+class TrialStates:
+    """Smoothed state estimates of one trial (arrays over its rows)."""
+
+    def __init__(self, biped: Biped, df: pd.DataFrame, joint_names: Sequence[str],
+                 fs: float, window: int = 15) -> None:
+        self.n = len(df)
+        J = list(joint_names)
+        dt = 1.0 / fs
+        qa = df[[f"q_{j}" for j in J]].to_numpy(dtype=float)
+        self.qa_raw = qa
+        self.dqa_meas = df[[f"dq_{j}" for j in J]].to_numpy(dtype=float)
+        self.window = window
+        self.dt = dt
+        self.qa = _savgol(qa, window)
+        self.dqa = _savgol(qa, window, deriv=1, delta=dt)
+        self.tau = df[[f"tau_{j}" for j in J]].to_numpy(dtype=float)
+        self.p_raw = df[["base_x", "base_y", "base_z"]].to_numpy(dtype=float)
+        self.p = _savgol(self.p_raw, window)
+        quat = df[["base_qw", "base_qx", "base_qy", "base_qz"]].to_numpy(dtype=float)
+        quat = quat * np.sign(quat[:, :1] + (quat[:, :1] == 0))
+        self.quat_raw = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+        quat = _savgol(quat, window)
+        self.quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)     # w x y z
+        self.v_W = _savgol(df[["base_vx", "base_vy", "base_vz"]].to_numpy(dtype=float), window)
+        self.w_B = _savgol(df[["base_wx", "base_wy", "base_wz"]].to_numpy(dtype=float), window)
+        self.time = df["time"].to_numpy(dtype=float)
+        self.labels = df["stance"].astype(str).to_numpy()
+        self.grf = df[["grf_x", "grf_y", "grf_z"]].to_numpy(dtype=float)
+        self.intr = df[["intrusion_x", "intrusion_y", "intrusion_z"]].to_numpy(dtype=float)
+        # within-run smoothing of the stance-foot channels
+        self.grf_s = np.zeros_like(self.grf)
+        self.intr_s = np.zeros_like(self.intr)
+        self.dintr_s = np.zeros_like(self.intr)
+        change = np.flatnonzero(self.labels[1:] != self.labels[:-1]) + 1
+        starts, stops = np.r_[0, change], np.r_[change, self.n]
+        self.runs = list(zip(starts.tolist(), stops.tolist()))
+        for a, b in self.runs:
+            if self.labels[a] == "none":
+                continue
+            self.grf_s[a:b] = _savgol(self.grf[a:b], window)
+            self.intr_s[a:b] = _savgol(self.intr[a:b], window)
+            self.dintr_s[a:b] = _savgol(self.intr[a:b], window, deriv=1, delta=dt)
+        self.biped = biped
+
+    def past_fit(self, k: int, cols: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+        """Angle and rate of joints ``cols`` at row ``k`` from a quadratic fit to the rows
+        up to ``k`` only (no smoothing across an impact after ``k``)."""
+        a = max(0, k - self.window + 1)
+        y = self.qa_raw[a:k + 1][:, cols]
+        if y.shape[0] < 4:
+            return self.qa[k, cols], self.dqa[k, cols]
+        t = (np.arange(a, k + 1) - k) * self.dt
+        coef = np.polyfit(t, y, 2)
+        return coef[2], coef[1]
+
+    def q(self, k: int, qa: np.ndarray | None = None) -> np.ndarray:
+        b = self.biped
+        w, x, y, z = self.quat[k]
+        return b.q_from_parts(self.p[k], [x, y, z, w], self.qa[k] if qa is None else qa)
+
+    def q_raw(self, k: int) -> np.ndarray:
+        w, x, y, z = self.quat_raw[k]
+        return self.biped.q_from_parts(self.p_raw[k], [x, y, z, w], self.qa_raw[k])
+
+    def v(self, k: int, dqa: np.ndarray | None = None) -> np.ndarray:
+        w, x, y, z = self.quat[k]
+        R = pin.Quaternion(w, x, y, z).matrix()
+        v = np.zeros(self.biped.model.nv)
+        v[0:3] = R.T @ self.v_W[k]
+        v[3:6] = self.w_B[k]
+        v[self.biped.idx_v] = self.dqa[k] if dqa is None else dqa
+        return v
+
+    def run_of(self, k: int) -> tuple[int, int]:
+        for a, b in self.runs:
+            if a <= k < b:
+                return a, b
+        raise IndexError(k)
+
+
+def _foot_init(biped: Biped, data: pin.Data, side: str, *, depth: float,
+               intrusion: np.ndarray, force: np.ndarray, in_contact: bool, depth_max: float,
+               t_stance: float, K: float, origin: np.ndarray) -> FootInit:
+    oMf = data.oMf[biped.foot_frame[side]]
+    pts = patch_points(biped, oMf) - origin          # local frame
+    n = len(pts)
+    point = pts.mean(axis=0)
+    surface = float(point[2] + depth)            # depth < 0: the foot is above the surface
+    depth = max(float(depth), 0.0)
+    if not in_contact:
+        return FootInit(False, surface, 0.0, point, np.zeros((n, 3)), np.zeros((n, 3)),
+                        np.zeros(3), 0.0, 0.0)
+    c0 = pts - np.array([intrusion[0], intrusion[1], -depth])
+    e = np.tile(-np.asarray(force, dtype=float) / (n * K), (n, 1))
+    return FootInit(True, surface, depth, point, c0, e, np.asarray(force, dtype=float),
+                    max(float(depth_max), depth), float(t_stance))
+
+
+def stance_windows(ds: Dataset, biped: Biped, *, contact_stiffness: float = 2.0e5,
+                   smooth_window: int = 15, min_samples: int = 20,
+                   touchdown_depth: float = 3e-3) -> list[StanceWindow]:
+    """Every complete stance phase of ``ds`` as a :class:`StanceWindow`.
+
+    A phase whose first samples show the stance foot at (almost) zero intrusion (median
+    of the first three samples below ``touchdown_depth``) starts at its **touchdown**: the
+    window starts one sample earlier, with that foot still above the sand; its joints'
+    angles and rates there come from a fit to the samples *before* the impact, and its
+    free surface from the mean of (contact-point height + measured intrusion) over the
+    first samples of the phase. Otherwise (labels that start mid-stance) the window
+    starts at the first sample with the foot buried at its measured intrusion.
+
+    Args:
+        ds: the data set.
+        biped: the robot model of ``ds.meta.robot``.
+        contact_stiffness: K per patch of the model terrain (the elastic displacement of a
+            loaded foot is −F/(n K)) [N/m].
+        smooth_window: Savitzky–Golay window [samples].
+        min_samples: shorter stance runs are skipped (contact flicker).
+        touchdown_depth: see above [m].
+    """
+    fs = ds.meta.sample_rate_hz
+    data = biped.create_data()
+    out: list[StanceWindow] = []
+    J = list(ds.joint_names)
+    for trial, df in ds.trials.items():
+        st = TrialStates(biped, df, J, fs, smooth_window)
+        speed = ds.commanded_speed(trial)
+        for ph in stance_phases(df, trial=trial, sides=("left", "right")):
+            if not ph.complete or ph.n_rows < min_samples:
+                continue
+            a, b = ph.row_start, ph.row_stop
+            side = ph.side
+            i = SIDES.index(side)
+            other = SIDES[1 - i]
+            leg = [k for k, j in enumerate(J) if j.startswith(side + "_")]
+            touchdown = float(np.median(st.intr[a:a + 3, 2])) < touchdown_depth
+            k0 = a - 1 if touchdown else a
+            qa0, dqa0 = st.qa[k0].copy(), st.dqa[k0].copy()
+            if touchdown and leg:
+                # the swing leg decelerates hard before touchdown: angles from a fit to the
+                # samples up to k0, rates as measured at k0 (no smoothing across the impact)
+                qa0[leg] = st.past_fit(k0, leg)[0]
+                dqa0[leg] = st.dqa_meas[k0, leg]
+            q0 = st.q(k0, qa0)
+            v0 = st.v(k0, dqa0)
+            pin.framesForwardKinematics(biped.model, data, q0)
+            c_W = patch_points(biped, data.oMf[biped.foot_frame[side]]).mean(axis=0)
+            if touchdown:
+                m = min(15, b - a)
+                heights = []
+                for k in range(a, a + m):
+                    pin.framesForwardKinematics(biped.model, data, st.q_raw(k))
+                    pts = patch_points(biped, data.oMf[biped.foot_frame[side]])
+                    heights.append(pts[:, 2].mean() + st.intr[k, 2])
+                surface_W = float(np.mean(heights))
+                pin.framesForwardKinematics(biped.model, data, q0)
+            else:
+                surface_W = float(c_W[2] + max(st.intr_s[a, 2], 0.0))
+            origin = np.array([c_W[0], c_W[1], surface_W])
+            lead_depth = surface_W - c_W[2]
+            if touchdown:
+                lead = _foot_init(biped, data, side, depth=lead_depth, intrusion=np.zeros(3),
+                                  force=np.zeros(3), in_contact=False, depth_max=0.0,
+                                  t_stance=0.0, K=contact_stiffness, origin=origin)
+            else:
+                lead = _foot_init(biped, data, side, depth=lead_depth, intrusion=st.intr_s[a],
+                                  force=st.grf_s[a], in_contact=True,
+                                  depth_max=float(st.intr_s[a, 2]), t_stance=0.0,
+                                  K=contact_stiffness, origin=origin)
+            # the trailing foot: in contact if the run before the phase was its stance
+            if a > 0 and st.labels[a - 1] == other:
+                pa, pb = st.run_of(a - 1)
+                trail = _foot_init(biped, data, other, depth=float(st.intr_s[a - 1, 2]),
+                                   intrusion=st.intr_s[a - 1], force=st.grf_s[a - 1],
+                                   in_contact=True,
+                                   depth_max=float(st.intr_s[pa:pb, 2].max()),
+                                   t_stance=float(st.time[a - 1] - st.time[pa]),
+                                   K=contact_stiffness, origin=origin)
+            else:
+                trail = _foot_init(biped, data, other, depth=0.0, intrusion=np.zeros(3),
+                                   force=np.zeros(3), in_contact=False, depth_max=0.0,
+                                   t_stance=0.0, K=contact_stiffness, origin=origin)
+            feet = [None, None]
+            feet[i], feet[1 - i] = lead, trail
+            q_loc = q0.copy()
+            q_loc[0:3] -= origin
+            r0 = k0 + 1                           # first predicted (scored) row
+            t_ph = st.time[a:b]
+            t = st.time[r0:b] - st.time[a]
+            meas = {f"q_{j}": df[f"q_{j}"].to_numpy(dtype=float)[r0:b] for j in J}
+            for k, ax in enumerate(AXES):
+                meas[f"grf_{ax}"] = st.grf[r0:b, k].copy()
+                meas[f"intrusion_{ax}"] = st.intr[r0:b, k].copy()
+            depth = st.intr_s[r0:b, 2]
+            feats = {
+                "depth": depth.copy(),
+                "sink_velocity": st.dintr_s[r0:b, 2].copy(),
+                "rise_from_deepest": np.maximum.accumulate(depth) - depth,
+                "slip_velocity": np.hypot(st.dintr_s[r0:b, 0], st.dintr_s[r0:b, 1]),
+                "sink_acceleration": _savgol(st.dintr_s[r0:b, 2], smooth_window, 1, 1.0 / fs),
+                "grf_z": st.grf_s[r0:b, 2].copy(),
+                "time_in_stance": t.copy(),
+                "joint_speed": np.abs(st.dqa[r0:b]).mean(axis=1),
+                "trunk_speed": np.linalg.norm(st.v_W[r0:b], axis=1),
+                "x_position": st.p[r0:b, 0].copy(),
+            }
+            out.append(StanceWindow(
+                index=len(out), trial=trial, speed=float(speed), side=side, foot=i,
+                row_start=r0, row_stop=b, time=t,
+                phase=100.0 * t / max(t_ph[-1] - t_ph[0], 1e-9),
+                q0=q_loc, v0=v0, tau=st.tau[k0:b - 1].copy(), feet=tuple(feet), origin=origin,
+                touchdown_W=np.array([c_W[0], c_W[1], surface_W]), meas=meas, features=feats))
+    return out
+
+
+def windows_frame(windows: Sequence[StanceWindow], values: Sequence[dict] | None = None,
+                  channels: Sequence[str] | None = None) -> pd.DataFrame:
+    """Long table of windows: ``trial, commanded_speed_mps, stance_id, side, phase_pct,
+    time`` and the channels (measured, or ``values[i]`` per window)."""
+    frames = []
+    for w in windows:
+        src = w.meas if values is None else values[w.index]
+        chans = list(channels or src.keys())
+        block = {"trial": np.full(w.n, w.trial, dtype=object),
+                 "commanded_speed_mps": np.full(w.n, w.speed),
+                 "stance_id": np.full(w.n, w.index), "side": np.full(w.n, w.side, dtype=object),
+                 "phase_pct": w.phase, "time": w.time}
+        for c in chans:
+            block[c] = np.asarray(src[c], dtype=float)
+        frames.append(pd.DataFrame(block))
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
+__all__ = ["StanceWindow", "FootInit", "TrialStates", "stance_windows", "windows_frame",
+           "channel_names", "channel_unit", "patch_points", "foot_pitch", "AXES"]
