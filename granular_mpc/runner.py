@@ -336,11 +336,26 @@ def _planned_stance(schedule, t: float) -> str:
     return "left" if left else "right"
 
 
+def _solver_columns(cd) -> dict:
+    """The controller's latest solver outcome as log columns: status as data, per row."""
+    plan = cd.plan
+    return {
+        "mpc_status": plan.status.value if plan is not None else "none",
+        "mpc_fallback": plan.fallback if plan is not None else "",
+        "mpc_solve_ms": float(plan.solve_ms) if plan is not None else float("nan"),
+        "wbc_status": cd.wbc.last_status.value,
+        "wbc_solve_ms": float(cd.wbc.last_ms),
+        "qp_failures": int(cd.qp_failures),
+    }
+
+
 def closed_loop(sim: Simulation, state: LoopState | None = None) -> Iterator[dict]:
     """Step the closed loop; yield one log row every ``sim.log_every`` plant steps.
 
     Rows are dicts with the run-log columns (:class:`granular_mpc.runlog.PlantRecorder`)
-    plus ``cmd_vx, cmd_vy`` [m/s] (speed reference, walk mode) and ``push_fx, push_fy,
+    plus ``cmd_vx, cmd_vy`` [m/s] (speed reference, walk mode), the controller's latest
+    solver outcome (``mpc_status``, ``mpc_fallback``, ``mpc_solve_ms``, ``wbc_status``,
+    ``wbc_solve_ms``, cumulative ``qp_failures``) and ``push_fx, push_fy,
     push_fz`` [N] (force on the trunk, world frame). The row at a fall is always yielded.
     The loop ends at ``sim.duration`` (a last row at t = duration), at a fall when
     ``fall.stop``, or when ``state.stop_reason`` is set; ``state.end_reason`` says which.
@@ -408,6 +423,7 @@ def _closed_loop(sim: Simulation, state: LoopState | None, PlantRecorder) -> Ite
             if walk:
                 _, v_ref, _ = cd.ramp.reference(t)
                 extra = {"cmd_vx": float(v_ref[0]), "cmd_vy": float(v_ref[1])}
+                extra.update(_solver_columns(cd))
                 if active is not None:
                     extra.update(push_fx=float(active.wrench[0]), push_fy=float(active.wrench[1]),
                                  push_fz=float(active.wrench[2]))

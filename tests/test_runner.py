@@ -263,3 +263,27 @@ def test_stance_metrics_on_a_log_with_known_answers():
     assert m["slip_mm_mean"] == pytest.approx(math.hypot(60.0 * 0.35 + 4.0, 2.0), rel=1e-9)
     later = stance_metrics(syn.df, t_start=syn.df["time"].iloc[syn.segments[3][1]])
     assert later["n_stances"] == 3
+
+
+def test_solver_outcomes_are_logged_per_row(tmp_path):
+    """Status as data: every walk-mode log row carries the latest MPC/WBC outcome, and a
+    forced MPC failure shows up in the log as a fallback and a growing failure count."""
+    from granular_mpc.control.solvers.proxqp import QPSolution, QPStatus
+    from granular_mpc.runner import build_simulation, closed_loop
+    from granular_mpc.scenario import load_scenario
+
+    sim = build_simulation(load_scenario("sim/rigid_walk.yaml", ["sim.duration=1.2"]))
+    state = sim.new_state()
+    rows = []
+    for row in closed_loop(sim, state):
+        rows.append(row)
+        if len(rows) == 400:             # from t ≈ 0.8 s on, every MPC solve fails
+            mpc = state.controller.mpc
+            mpc.solver.solve = lambda p, n=sim.controller.mpc.nu: QPSolution(
+                np.zeros(n), QPStatus.PRIMAL_INFEASIBLE)
+    assert {"mpc_status", "mpc_fallback", "wbc_status", "qp_failures"} <= set(rows[0])
+    late = [r for r in rows if r["time"] > 1.0]
+    assert all(r["mpc_status"] == "primal_infeasible" for r in late)
+    assert all(r["mpc_fallback"] in ("shifted", "shifted+nominal", "nominal") for r in late)
+    assert rows[-1]["qp_failures"] >= 6 > rows[350]["qp_failures"]
+    assert state.fall is None            # the fallback keeps it walking for a while

@@ -364,8 +364,8 @@ def elastic_unloading(o, s: PatchState, p):
 
 # ================================================================================= joint
 @register_joint_effect("joint_friction", params={
-    "viscous": Param(0.05, 0.0, 2.0, "N·m·s/rad", "viscous friction coefficient b"),
-    "coulomb": Param(0.3, 0.0, 5.0, "N·m", "Coulomb friction torque τ_c"),
+    "viscous": Param(0.02, 0.0, 2.0, "N·m·s/rad", "viscous friction coefficient b"),
+    "coulomb": Param(0.1, 0.0, 5.0, "N·m", "Coulomb friction torque τ_c"),
     "smoothing": Param(0.2, 0.01, 5.0, "rad/s", "velocity below which Coulomb friction is smoothed"),
 }, main="coulomb", neutral={"viscous": 0.0, "coulomb": 0.0},
     depends_on=("joint velocity (sign and magnitude)",))
@@ -397,7 +397,7 @@ def force_sensor_bias(cols, p, ctx: SensorContext):
 
 # ============================================================================== geometry
 @register_geometry_effect("terrain_slope", params={
-    "slope_x": Param(0.05, -0.3, 0.3, "-", "dz/dx of the free surface (uphill along +x > 0)"),
+    "slope_x": Param(0.02, -0.3, 0.3, "-", "dz/dx of the free surface (uphill along +x > 0)"),
     "slope_y": Param(0.0, -0.3, 0.3, "-", "dz/dy of the free surface"),
 }, main="slope_x", neutral={"slope_x": 0.0, "slope_y": 0.0},
     depends_on=("position of the footprint along the walk",))

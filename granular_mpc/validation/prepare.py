@@ -168,7 +168,7 @@ class TrialStates:
     """Smoothed state estimates of one trial (arrays over its rows)."""
 
     def __init__(self, biped: Biped, df: pd.DataFrame, joint_names: Sequence[str],
-                 fs: float, window: int = 15) -> None:
+                 fs: float, window: int = 15, contact_window: int = 9) -> None:
         self.n = len(df)
         J = list(joint_names)
         dt = 1.0 / fs
@@ -203,9 +203,10 @@ class TrialStates:
         for a, b in self.runs:
             if self.labels[a] == "none":
                 continue
-            self.grf_s[a:b] = _savgol(self.grf[a:b], window)
-            self.intr_s[a:b] = _savgol(self.intr[a:b], window)
-            self.dintr_s[a:b] = _savgol(self.intr[a:b], window, deriv=1, delta=dt)
+            cw = contact_window          # the foot sinks within ≈ 20 ms: a shorter window
+            self.grf_s[a:b] = _savgol(self.grf[a:b], cw)
+            self.intr_s[a:b] = _savgol(self.intr[a:b], cw)
+            self.dintr_s[a:b] = _savgol(self.intr[a:b], cw, deriv=1, delta=dt)
         self.biped = biped
 
     def past_fit(self, k: int, cols: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
@@ -260,6 +261,32 @@ def _foot_init(biped: Biped, data: pin.Data, side: str, *, depth: float,
     e = np.tile(-np.asarray(force, dtype=float) / (n * K), (n, 1))
     return FootInit(True, surface, depth, point, c0, e, np.asarray(force, dtype=float),
                     max(float(depth_max), depth), float(t_stance))
+
+
+def _foot_kinematics(biped: Biped, data: pin.Data, st: "TrialStates", side: str, a: int,
+                     b: int) -> dict:
+    """Per row of [a, b): foot pitch ψ_c [rad], contact-point (material) velocity v_c [m/s]
+    in W, its heading-frame components (v_h, v_l, v_z) and the unit heading (hx, hy)."""
+    n = b - a
+    pitch = np.zeros(n)
+    vc = np.zeros((n, 3))
+    head = np.zeros((n, 2))
+    fid = biped.foot_frame[side]
+    for k in range(n):
+        q, v = st.q(a + k), st.v(a + k)
+        pin.forwardKinematics(biped.model, data, q, v)
+        oMf = pin.updateFramePlacement(biped.model, data, fid)
+        pts = patch_points(biped, oMf)
+        vel = pin.getFrameVelocity(biped.model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        vc[k] = vel.linear + np.cross(vel.angular, pts.mean(axis=0) - oMf.translation)
+        pitch[k] = foot_pitch(oMf)
+        hx, hy = oMf.rotation[0, 0], oMf.rotation[1, 0]
+        hn = math.hypot(hx, hy) or 1.0
+        head[k] = hx / hn, hy / hn
+    v_h = vc[:, 0] * head[:, 0] + vc[:, 1] * head[:, 1]
+    v_l = -vc[:, 0] * head[:, 1] + vc[:, 1] * head[:, 0]
+    return {"pitch": pitch, "vc_x": vc[:, 0], "vc_y": vc[:, 1], "vc_z": vc[:, 2],
+            "v_h": v_h, "v_l": v_l, "heading_x": head[:, 0], "heading_y": head[:, 1]}
 
 
 def stance_windows(ds: Dataset, biped: Biped, *, contact_stiffness: float = 2.0e5,
@@ -357,6 +384,8 @@ def stance_windows(ds: Dataset, biped: Biped, *, contact_stiffness: float = 2.0e
             for k, ax in enumerate(AXES):
                 meas[f"grf_{ax}"] = st.grf[r0:b, k].copy()
                 meas[f"intrusion_{ax}"] = st.intr[r0:b, k].copy()
+            kin = _foot_kinematics(biped, data, st, side, r0, b)
+            pin.framesForwardKinematics(biped.model, data, q0)
             depth = st.intr_s[r0:b, 2]
             feats = {
                 "depth": depth.copy(),
@@ -369,6 +398,7 @@ def stance_windows(ds: Dataset, biped: Biped, *, contact_stiffness: float = 2.0e
                 "joint_speed": np.abs(st.dqa[r0:b]).mean(axis=1),
                 "trunk_speed": np.linalg.norm(st.v_W[r0:b], axis=1),
                 "x_position": st.p[r0:b, 0].copy(),
+                **kin,
             }
             out.append(StanceWindow(
                 index=len(out), trial=trial, speed=float(speed), side=side, foot=i,

@@ -1,0 +1,1159 @@
+"""Calibrate, then diagnose: which physical effect is the model missing, and where?
+
+``diagnose(DATA, out_dir=…)`` runs four stages (``docs/validation.md`` explains them):
+
+1. **Calibrate** the model's own terrain parameters (ζ, φ_s) on equation-error residuals
+   of the sinking samples with the exact CasADi Jacobian (:mod:`.calibrate`), with
+   Gauss–Newton and trial-bootstrap intervals. A parameter that is merely off is
+   absorbed here — and again by the nuisance columns below — never reported as an effect.
+2. **Replay** every stance (multiple shooting, :mod:`.replay`) with the calibrated model;
+   the residual (measured − replayed) of every channel, averaged in stance-phase bins, is
+   the thing to explain. For every candidate effect (the effects library — terrain-force,
+   joint, sensor and geometry kinds — plus any user-registered effect) one more replay
+   with the effect switched on at a nominal magnitude gives its *sensitivity column*; the
+   calibration parameters get sensitivity columns too (nuisance, always in the model).
+   Touchdown heights give a second, geometric equation (surface height vs. footprint
+   position, one free height per trial). Residuals are weighted by each channel's
+   stance-to-stance scatter.
+3. **Rank** the candidates by bounded least squares on these columns: held-out error
+   reduction under trial-grouped cross-validation (``GroupKFold``, groups = trials),
+   ΔAICc (N corrected for the autocorrelation of the bins) and the inclusion probability
+   of a forward selection refitted on bootstrap resamples of whole trials. Candidates
+   whose fitted columns are nearly collinear are reported together, with the experiment
+   that would separate them. An effect is **added** only if it passes all three tests;
+   otherwise the verdict is "no significant missing effect". Added effects are refined by
+   Gauss–Newton on the replays (the linearisation is redone at the fitted values).
+4. **Localise** the residual structure — by channel × stance phase (bias t-statistics
+   across stances), by speed, by rank correlation and mutual information with the
+   measured state (depth, sink/slip velocity, rise from the deepest point, acceleration,
+   time in stance, joint and trunk speed, position), and Ljung–Box whiteness of the
+   stance-to-stance sequence — before and after the added effects, so structure that no
+   candidate explains is reported as such.
+
+Outputs: ``diagnosis.json`` (``verdict``, ``calibration``, ``ranking``, ``localization``,
+``fitted_effects``, ``indistinguishable`` …), ``report.md`` (one page) and figures.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time as _time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from ..config import SimConfig
+from ..exceptions import GranularMpcError, OutputError
+from ..terrain.effects_library import EffectInfo, all_effects, effect_info
+from .prepare import StanceWindow, channel_names, channel_unit
+from .replay import (ReplayPool, Variant, _json_safe, build_replay_model, effect_variant,
+                     model_terrain)
+
+#: decision thresholds (documented in docs/validation.md)
+MIN_HELDOUT_REDUCTION = 0.02      # at least 2 % less held-out weighted SSE
+MAX_DELTA_AICC = -10.0            # "strong" evidence (Burnham–Anderson)
+MIN_INCLUSION = 0.6               # selected in most bootstrap refits
+T_CELL = 4.0                      # |t| of a channel × phase cell that counts as structure
+
+FEATURE_EXPERIMENTS = {
+    "depth": "a wider range of sinkage (looser or deeper sand, a payload)",
+    "sink_velocity": "different touchdown speeds (swing height or duration)",
+    "rise_from_deepest": "different pull-out motions (higher foot lift, slower push-off)",
+    "sink_acceleration": "harder or softer touchdown impacts",
+    "slip_velocity": "more horizontal slip (turning, side steps, higher speed)",
+    "time_in_stance": "a different gait period (longer or shorter stance)",
+    "joint_speed": "a wider range of joint speeds (speeds, swing durations)",
+    "trunk_speed": "a wider range of commanded speeds",
+    "grf_z": "different loads (payload)",
+    "x_position": "walks over a longer distance / in both directions",
+    "commanded_speed": "a wider range of commanded speeds",
+}
+
+
+# ======================================================================================
+# Candidates and their columns
+# ======================================================================================
+
+
+@dataclass(frozen=True)
+class Column:
+    """One regression column: a magnitude parameter of a candidate (or a nuisance θ)."""
+
+    candidate: str          # effect name, or "calibration"
+    param: str              # parameter (θ name for nuisance)
+    neutral: float          # value that switches it off (nuisance: the calibrated value)
+    step: float             # finite-difference step of the sensitivity
+    lower: float            # bounds of the parameter value
+    upper: float
+    unit: str = ""
+
+    @property
+    def key(self) -> str:
+        return f"{self.candidate}.{self.param}"
+
+
+def candidate_columns(info: EffectInfo) -> list[Column]:
+    """Columns of one candidate: its parameters that switch it off (``neutral``)."""
+    cols = []
+    for p, neutral in info.neutral.items():
+        spec = info.params[p]
+        step = spec.default - neutral
+        if abs(step) < 1e-12:
+            step = 0.1 * (spec.upper - spec.lower)
+            if neutral + step > spec.upper:
+                step = -step
+        cols.append(Column(info.name, p, float(neutral), float(step), spec.lower, spec.upper,
+                           spec.unit))
+    return cols
+
+
+def _variant_for(info: EffectInfo, values: Mapping[str, float], base: Variant) -> Variant:
+    p = info.neutral_params()
+    p.update(values)
+    return effect_variant([(info, p)], base)
+
+
+# ======================================================================================
+# Residual rows
+# ======================================================================================
+
+
+def _bin_means(w: StanceWindow, values: Mapping[str, np.ndarray], channels: Sequence[str],
+               edges: np.ndarray) -> np.ndarray:
+    """(C, B) phase-bin means of ``values`` over one window (NaN where empty)."""
+    b = np.clip(np.searchsorted(edges, w.phase, side="right") - 1, 0, len(edges) - 2)
+    out = np.full((len(channels), len(edges) - 1), np.nan)
+    for c, ch in enumerate(channels):
+        v = np.asarray(values[ch], dtype=float)
+        for k in range(len(edges) - 1):
+            m = (b == k) & np.isfinite(v)
+            if m.any():
+                out[c, k] = v[m].mean()
+    return out
+
+
+def _residual_cube(windows, preds, channels, edges) -> np.ndarray:
+    """(W, C, B) binned residual measured − predicted."""
+    out = np.empty((len(windows), len(channels), len(edges) - 1))
+    for i, w in enumerate(windows):
+        diff = {c: w.meas[c] - np.asarray(preds[i][c], dtype=float) for c in channels}
+        out[i] = _bin_means(w, diff, channels, edges)
+    return out
+
+
+def _pred_cube(windows, preds, channels, edges) -> np.ndarray:
+    out = np.empty((len(windows), len(channels), len(edges) - 1))
+    for i, w in enumerate(windows):
+        out[i] = _bin_means(w, preds[i], channels, edges)
+    return out
+
+
+@dataclass
+class Design:
+    """Stacked weighted regression problem (replay rows, then geometry rows)."""
+
+    y: np.ndarray                     # weighted residual
+    X: dict                           # column key → weighted column
+    groups: np.ndarray                # trial of each row
+    window: np.ndarray                # window index of each row (−1: none)
+    channel: np.ndarray               # channel name of each row ("touchdown_z" for geometry)
+    phase_bin: np.ndarray             # phase bin (−1 for geometry rows)
+    sigma: dict                       # channel → weight scale (channel units)
+    n_eff_factor: float               # N_eff / N
+
+
+# ======================================================================================
+# Linear fits, cross-validation, AICc, bootstrap
+# ======================================================================================
+
+
+def _fit(X: np.ndarray, y: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> np.ndarray:
+    from scipy.optimize import lsq_linear
+
+    if X.shape[1] == 0:
+        return np.zeros(0)
+    scale = np.sqrt((X ** 2).sum(axis=0))
+    scale[scale == 0] = 1.0
+    res = lsq_linear(X / scale, y, bounds=(lb * scale, ub * scale), method="bvls")
+    return res.x / scale
+
+
+def _aicc(rss: float, n: float, k: int) -> float:
+    n = max(n, k + 2.0)
+    return n * math.log(max(rss, 1e-300) / n) + 2 * k + 2 * k * (k + 1) / (n - k - 1)
+
+
+class Regression:
+    """Bounded least squares on a :class:`Design` with CV, AICc and bootstrap tools."""
+
+    def __init__(self, design: Design, bounds: Mapping[str, tuple[float, float]],
+                 nuisance: Sequence[str], *, n_splits: int = 5, seed: int = 0) -> None:
+        from sklearn.model_selection import GroupKFold
+
+        self.d = design
+        self.bounds = dict(bounds)
+        self.nuisance = list(nuisance)
+        ok = np.isfinite(design.y)
+        for v in design.X.values():
+            ok &= np.isfinite(v)
+        self.ok = ok
+        self.y = design.y[ok]
+        self.cols = {k: v[ok] for k, v in design.X.items()}
+        self.groups = design.groups[ok]
+        ng = np.unique(self.groups).size
+        self.splits = []
+        if ng >= 2:
+            gkf = GroupKFold(n_splits=min(n_splits, ng))
+            self.splits = list(gkf.split(self.y, groups=self.groups))
+        self.seed = seed
+
+    def matrix(self, keys: Sequence[str], rows=None):
+        if not keys:
+            n = self.y.size if rows is None else len(rows)
+            return np.zeros((n, 0)), np.zeros(0), np.zeros(0)
+        X = np.column_stack([self.cols[k] for k in keys])
+        lb = np.array([self.bounds[k][0] for k in keys])
+        ub = np.array([self.bounds[k][1] for k in keys])
+        return (X if rows is None else X[rows]), lb, ub
+
+    def fit(self, keys: Sequence[str], rows=None) -> tuple[np.ndarray, float]:
+        X, lb, ub = self.matrix(keys, rows)
+        y = self.y if rows is None else self.y[rows]
+        beta = _fit(X, y, lb, ub)
+        r = y - X @ beta if len(keys) else y
+        return beta, float(r @ r)
+
+    def cv(self, keys: Sequence[str]) -> tuple[float, list[float]]:
+        """Held-out SSE (sum over folds) and per-fold SSE."""
+        per = []
+        for tr, te in self.splits:
+            X, lb, ub = self.matrix(keys)
+            beta = _fit(X[tr], self.y[tr], lb, ub)
+            r = self.y[te] - X[te] @ beta if len(keys) else self.y[te]
+            per.append(float(r @ r))
+        return float(sum(per)), per
+
+    def n_eff(self, rows=None) -> float:
+        n = self.y.size if rows is None else len(rows)
+        return n * self.d.n_eff_factor
+
+    def aicc(self, keys: Sequence[str], rows=None) -> float:
+        _, rss = self.fit(keys, rows)
+        return _aicc(rss, self.n_eff(rows), len(keys))
+
+    def covariance(self, keys: Sequence[str], beta: np.ndarray) -> np.ndarray:
+        X, _, _ = self.matrix(keys)
+        r = self.y - X @ beta
+        dof = max(self.y.size - len(keys), 1)
+        s2 = float(r @ r) / dof / max(self.d.n_eff_factor, 1e-3)
+        try:
+            return np.linalg.inv(X.T @ X) * s2
+        except np.linalg.LinAlgError:
+            return np.full((len(keys), len(keys)), np.nan)
+
+
+def _forward(reg: Regression, cand_cols: Mapping[str, list[str]], base_keys: list[str],
+             rows=None, max_terms: int = 3) -> list[str]:
+    """Forward selection by AICc (entry: ΔAICc ≤ MAX_DELTA_AICC), on ``rows``."""
+    chosen: list[str] = []
+    keys = list(base_keys)
+    cur = reg.aicc(keys, rows)
+    for _ in range(max_terms):
+        best, best_a = None, cur
+        for name, cols in cand_cols.items():
+            if name in chosen:
+                continue
+            a = reg.aicc(keys + cols, rows)
+            if a - cur <= MAX_DELTA_AICC and a < best_a:
+                best, best_a = name, a
+        if best is None:
+            break
+        chosen.append(best)
+        keys = keys + cand_cols[best]
+        cur = best_a
+    return chosen
+
+
+# ======================================================================================
+# Localisation
+# ======================================================================================
+
+
+def _spearman(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    from scipy.stats import spearmanr
+
+    m = np.isfinite(x) & np.isfinite(y)
+    if m.sum() < 10 or np.std(x[m]) == 0 or np.std(y[m]) == 0:
+        return float("nan"), float("nan")
+    r = spearmanr(x[m], y[m])
+    return float(r.statistic), float(r.pvalue)
+
+
+def localize(windows: Sequence[StanceWindow], R: np.ndarray, channels: Sequence[str],
+             edges: np.ndarray, sigma: Mapping[str, float], *, model_df: int = 0,
+             seed: int = 0) -> dict:
+    """Where, when and with what the residual cube ``R`` (W, C, B) is structured."""
+    from sklearn.feature_selection import mutual_info_regression
+    from statsmodels.stats.diagnostic import acorr_ljungbox
+
+    W, C, B = R.shape
+    cells = []
+    for c, ch in enumerate(channels):
+        for b in range(B):
+            v = R[:, c, b]
+            v = v[np.isfinite(v)]
+            if v.size < 3:
+                continue
+            mean, sd = float(v.mean()), float(v.std(ddof=1))
+            t = mean / (sd / math.sqrt(v.size)) if sd > 0 else 0.0
+            cells.append({"channel": ch, "phase_lo": float(edges[b]), "phase_hi": float(edges[b + 1]),
+                          "bias": mean, "sd": sd, "rms": float(np.sqrt(np.mean(v ** 2))),
+                          "t": t, "n": int(v.size), "unit": channel_unit(ch),
+                          "normalised_bias": mean / sigma.get(ch, 1.0)})
+    sig = [cl for cl in cells if abs(cl["t"]) >= T_CELL]
+    sig.sort(key=lambda cl: -abs(cl["t"]))
+    # by channel: share of the systematic part
+    by_channel = {}
+    for c, ch in enumerate(channels):
+        v = R[:, c, :]
+        mean_profile = np.nanmean(v, axis=0)
+        total = float(np.nanmean(v ** 2))
+        syst = float(np.nanmean(mean_profile ** 2))
+        by_channel[ch] = {"rms": math.sqrt(total) if total == total else None,
+                          "systematic_rms": math.sqrt(syst) if syst == syst else None,
+                          "systematic_share": syst / total if total > 0 else None,
+                          "unit": channel_unit(ch)}
+    # by speed
+    speeds = np.array([w.speed for w in windows])
+    by_speed = []
+    for s in np.unique(speeds):
+        m = speeds == s
+        for c, ch in enumerate(channels):
+            v = R[m, c, :]
+            by_speed.append({"speed_mps": float(s), "channel": ch,
+                             "bias": float(np.nanmean(v)), "rms": float(np.sqrt(np.nanmean(v ** 2))),
+                             "n_stances": int(m.sum())})
+    # correlates: binned features vs binned normalised residual
+    feats = ["depth", "sink_velocity", "rise_from_deepest", "sink_acceleration",
+             "slip_velocity", "time_in_stance", "joint_speed", "trunk_speed", "grf_z",
+             "x_position"]
+    Fcube = np.empty((W, len(feats), B))
+    for i, w in enumerate(windows):
+        Fcube[i] = _bin_means(w, w.features, feats, edges)
+    spd = np.repeat(speeds[:, None], B, axis=1)
+    correlates = {}
+    rng = np.random.default_rng(seed)
+    for c, ch in enumerate(channels):
+        y = (R[:, c, :] / sigma.get(ch, 1.0)).ravel()
+        out = []
+        for k, f in enumerate(feats + ["commanded_speed"]):
+            x = (spd if f == "commanded_speed" else Fcube[:, k, :]).ravel()
+            rho, p = _spearman(x, y)
+            out.append({"feature": f, "spearman": rho, "p_value": p})
+        m = np.isfinite(y)
+        X = np.column_stack([(spd if f == "commanded_speed" else Fcube[:, k, :]).ravel()
+                             for k, f in enumerate(feats + ["commanded_speed"])])
+        m &= np.isfinite(X).all(axis=1)
+        if m.sum() > 30:
+            idx = np.flatnonzero(m)
+            if idx.size > 3000:
+                idx = rng.choice(idx, 3000, replace=False)
+            mi = mutual_info_regression(X[idx], y[idx], random_state=seed)
+            for e, v in zip(out, mi):
+                e["mutual_information"] = float(v)
+        out.sort(key=lambda e: -(abs(e["spearman"]) if e["spearman"] == e["spearman"] else 0))
+        correlates[ch] = out
+    # whiteness of the stance-to-stance sequence (per channel: stance-mean residual in
+    # time order, trials concatenated)
+    order = sorted(range(W), key=lambda i: (windows[i].trial, windows[i].row_start))
+    whiteness = {}
+    for c, ch in enumerate(channels):
+        seq = np.array([np.nanmean(R[i, c, :]) for i in order])
+        seq = seq[np.isfinite(seq)]
+        lags = int(min(10, max(1, seq.size // 5)))
+        if seq.size > lags + model_df + 2:
+            lb = acorr_ljungbox(seq - seq.mean(), lags=[lags], model_df=min(model_df, lags - 1)
+                                if lags > 1 else 0)
+            whiteness[ch] = {"lags": lags, "q": float(lb["lb_stat"].iloc[0]),
+                             "p_value": float(lb["lb_pvalue"].iloc[0])}
+    return {"cells": cells, "significant_cells": sig[:40], "n_significant_cells": len(sig),
+            "by_channel": by_channel, "by_speed": by_speed, "correlates": correlates,
+            "whiteness_stance_sequence": whiteness}
+
+
+def _where_summary(loc: dict, top: int = 5) -> list[str]:
+    lines = []
+    seen = set()
+    for cl in loc["significant_cells"]:
+        key = cl["channel"]
+        if key in seen:
+            continue
+        seen.add(key)
+        cor = [e for e in loc["correlates"].get(key, []) if e.get("p_value") == e.get("p_value")
+               and e["p_value"] is not None and e["p_value"] < 1e-3 and abs(e["spearman"]) >= 0.2]
+        with_what = ", ".join(f"{e['feature']} (ρ = {e['spearman']:+.2f})" for e in cor[:3])
+        lines.append(f"{key}: bias {cl['bias']:+.3g} {cl['unit']} at {cl['phase_lo']:g}–"
+                     f"{cl['phase_hi']:g} % of stance (t = {cl['t']:+.1f})"
+                     + (f"; correlates with {with_what}" if with_what else ""))
+        if len(lines) >= top:
+            break
+    return lines
+
+
+# ======================================================================================
+# diagnose
+# ======================================================================================
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """What :func:`diagnose` found (``result`` is the content of ``diagnosis.json``)."""
+
+    result: dict
+    out_dir: Path | None
+    figures: tuple = ()
+
+    @property
+    def verdict(self) -> dict:
+        return self.result["verdict"]
+
+    @property
+    def ranking(self) -> list:
+        return self.result["ranking"]
+
+    @property
+    def added(self) -> list[str]:
+        return list(self.result["verdict"]["added"])
+
+
+def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
+             candidates: Sequence[str] | None = None, seed: int = 0,
+             terrain: Any = "dry_sand", sim: SimConfig | None = None,
+             workers: int | None = None, n_boot: int = 200, phase_bins: int = 10,
+             max_effects: int = 2, refine_iterations: int = 2,
+             effect_files: Sequence[str | Path] = (), figures: bool = True) -> Diagnosis:
+    """Calibrate the model on a data set, then find, rank and localise missing effects.
+
+    Args:
+        data_dir: measurement data set (format v1).
+        out_dir: folder for ``diagnosis.json``, ``report.md`` and figures (None: none).
+        candidates: effect names to test (default: every registered effect of any kind,
+            built-in and user-registered).
+        seed: seed of the bootstrap and of the mutual-information estimates.
+        terrain: the model's terrain (name/path or config) before calibration.
+        sim: plant settings of the replays.
+        workers: processes for the replays (default: all CPUs).
+        n_boot: bootstrap resamples (inclusion probability, intervals).
+        phase_bins: stance-phase bins of the residual rows.
+        max_effects: at most this many effects are added.
+        refine_iterations: Gauss–Newton replay iterations for the added effects.
+        effect_files: user Python files registering effects (imported first; their
+            effects become candidates).
+        figures: write figures and the one-page report.
+
+    Returns:
+        :class:`Diagnosis`.
+    """
+    from ..robot.model import load_biped
+    from ..terrain.effects import load_effect_file
+    from .calibrate import calibrate
+    from .dataformat import load_dataset
+    from .prepare import stance_windows
+
+    t_start = _time.perf_counter()
+    timing: dict[str, float] = {}
+    for f in effect_files:
+        load_effect_file(str(f))
+    ds = load_dataset(data_dir)
+    biped = load_biped(ds.meta.robot, with_visuals=False)
+    names = sorted(all_effects()) if candidates is None else list(dict.fromkeys(candidates))
+    infos = {n: effect_info(n) for n in names}
+    infos = {n: i for n, i in infos.items() if i.neutral}      # needs a way to switch off
+    cfg0 = model_terrain(terrain)
+    terrain_names = [n for n, i in infos.items() if i.kind == "terrain_force"]
+    rm0 = build_replay_model(biped, cfg0, sample_rate_hz=ds.meta.sample_rate_hz, sim=sim)
+    windows = stance_windows(ds, biped, contact_stiffness=rm0.contact_stiffness)
+    if len(windows) < 4:
+        raise GranularMpcError(f"{data_dir}: {len(windows)} complete stance phases; the "
+                               "diagnosis needs at least 4")
+    timing["prepare"] = _time.perf_counter() - t_start
+    # ---------------------------------------------------------------- 1. calibrate
+    t0 = _time.perf_counter()
+    cal = calibrate(windows, rm0.terrain, n_slices=biped.config.foot.slices, seed=seed)
+    cfg = model_terrain(cfg0, cal.values)
+    rm = build_replay_model(biped, cfg, sample_rate_hz=ds.meta.sample_rate_hz, sim=sim,
+                            terrain_effects=terrain_names)
+    timing["calibrate"] = _time.perf_counter() - t0
+    J = list(ds.joint_names)
+    channels = channel_names(J)
+    edges = np.linspace(0.0, 100.0, phase_bins + 1)
+    # ---------------------------------------------------------------- 2. replays
+    t0 = _time.perf_counter()
+    base = Variant(label="calibrated")
+    nuis_cols = [Column("calibration", "zeta", cal.values["zeta"], 0.1 * cal.values["zeta"],
+                        0.05, 10.0),
+                 Column("calibration", "phi_s", cal.values["phi_s"], math.radians(3.0),
+                        math.radians(15.0), math.radians(70.0), "rad")]
+    variants: dict[str, Variant] = {"base": base}
+    for col in nuis_cols:
+        variants[col.key] = base.with_theta(**{col.param: col.neutral + col.step})
+    cand_cols: dict[str, list[Column]] = {}
+    for n, info in infos.items():
+        cand_cols[n] = candidate_columns(info)
+        if info.kind == "sensor":
+            continue
+        for col in cand_cols[n]:
+            variants[col.key] = _variant_for(info, {col.param: col.neutral + col.step}, base)
+    pool = ReplayPool(rm, windows, workers=workers)
+    preds = pool.run(variants)
+    timing["replays"] = _time.perf_counter() - t0
+    t0 = _time.perf_counter()
+    R = _residual_cube(windows, preds["base"], channels, edges)
+    P0 = _pred_cube(windows, preds["base"], channels, edges)
+    sens: dict[str, np.ndarray] = {}
+    for col in nuis_cols:
+        sens[col.key] = (_pred_cube(windows, preds[col.key], channels, edges) - P0) / col.step
+    for n, cols in cand_cols.items():
+        info = infos[n]
+        for col in cols:
+            if info.kind == "sensor":
+                from ..terrain.effects_library import SensorContext, apply_sensor_effects
+                p = info.neutral_params()
+                p[col.param] = col.neutral + col.step
+                shifted = []
+                for w, pr in zip(windows, preds["base"]):
+                    ctx = SensorContext(np.full(w.n, w.side, dtype=object), w.time, tuple(J))
+                    shifted.append(apply_sensor_effects({c: pr[c] for c in channels},
+                                                        [(info, p)], ctx))
+                sens[col.key] = (_pred_cube(windows, shifted, channels, edges) - P0) / col.step
+            else:
+                sens[col.key] = (_pred_cube(windows, preds[col.key], channels, edges) - P0) / col.step
+    diverged = [w.index for w, p in zip(windows, preds["base"]) if p["diverged"]]
+    # ---------------------------------------------------------------- weights
+    trials = np.array([w.trial for w in windows])
+    sigma = {}
+    for c, ch in enumerate(channels):
+        var = []
+        for t in np.unique(trials):
+            v = R[trials == t, c, :]
+            if v.shape[0] >= 2:
+                var.append(np.nanvar(v, axis=0, ddof=1))
+        s = float(np.sqrt(np.nanmean(np.concatenate(var)))) if var else float(np.nanstd(R[:, c]))
+        sigma[ch] = s if s > 0 and math.isfinite(s) else 1.0
+    # lag-1 autocorrelation along the phase bins → effective sample size
+    Z = R / np.array([sigma[ch] for ch in channels])[None, :, None]
+    Zc = Z - np.nanmean(Z, axis=0, keepdims=True)
+    a, b2 = Zc[:, :, 1:], Zc[:, :, :-1]
+    m = np.isfinite(a) & np.isfinite(b2)
+    rho = float(np.sum(a[m] * b2[m]) / max(np.sum(Zc[np.isfinite(Zc)] ** 2), 1e-12))
+    rho = min(max(rho, 0.0), 0.95)
+    n_eff_factor = (1.0 - rho) / (1.0 + rho)
+    # geometry rows: touchdown heights, one free height per trial
+    td = np.array([w.touchdown_W for w in windows])
+    geo_y = np.zeros(len(windows))
+    geo_x = np.zeros(len(windows))
+    geo_yy = np.zeros(len(windows))
+    for t in np.unique(trials):
+        m = trials == t
+        geo_y[m] = td[m, 2] - td[m, 2].mean()
+        geo_x[m] = td[m, 0] - td[m, 0].mean()
+        geo_yy[m] = td[m, 1] - td[m, 1].mean()
+    A = np.column_stack([geo_x, geo_yy])
+    gres = geo_y - A @ np.linalg.lstsq(A, geo_y, rcond=None)[0] if len(windows) > 3 else geo_y
+    sigma_geo = float(1.4826 * np.median(np.abs(gres - np.median(gres)))) or 1e-3
+    sigma["touchdown_z"] = sigma_geo
+    geo_sens: dict[str, np.ndarray] = {}
+    for n, cols in cand_cols.items():
+        info = infos[n]
+        for col in cols:
+            if info.kind != "geometry":
+                geo_sens[col.key] = np.zeros(len(windows))
+                continue
+            p0 = info.neutral_params()
+            p1 = dict(p0)
+            p1[col.param] = col.neutral + col.step
+            th0, th1 = info.fn(p0), info.fn(p1)
+
+            def height(th):
+                return (th.get("surface_height", 0.0) + th.get("surface_slope_x", 0.0) * geo_x
+                        + th.get("surface_slope_y", 0.0) * geo_yy)
+            geo_sens[col.key] = (height(th1) - height(th0)) / col.step
+    # ---------------------------------------------------------------- design
+    Wn, C, B = R.shape
+    w_idx = np.repeat(np.arange(Wn), C * B)
+    ch_idx = np.tile(np.repeat(np.arange(C), B), Wn)
+    b_idx = np.tile(np.arange(B), Wn * C)
+    sig_vec = np.array([sigma[ch] for ch in channels])[ch_idx]
+    y = np.concatenate([R.ravel() / sig_vec, geo_y / sigma_geo])
+    X = {}
+    for k, S in sens.items():
+        g = geo_sens.get(k, np.zeros(len(windows)))
+        X[k] = np.concatenate([S.ravel() / sig_vec, g / sigma_geo])
+    groups = np.concatenate([trials[w_idx], trials])
+    n_trials = np.unique(trials).size
+    group_unit = "trial"
+    if n_trials < 3:                    # too few trials to hold any out: use stances
+        groups = np.concatenate([w_idx.astype(str), np.arange(Wn).astype(str)])
+        group_unit = "stance"
+    design = Design(y, X, groups, np.concatenate([w_idx, np.arange(Wn)]),
+                    np.concatenate([np.array(channels)[ch_idx], np.full(Wn, "touchdown_z")]),
+                    np.concatenate([b_idx, np.full(Wn, -1)]), sigma, n_eff_factor)
+    bounds = {}
+    for col in nuis_cols:
+        bounds[col.key] = (col.lower - col.neutral, col.upper - col.neutral)
+    for cols in cand_cols.values():
+        for col in cols:
+            bounds[col.key] = (col.lower - col.neutral, col.upper - col.neutral)
+    reg = Regression(design, bounds, [c.key for c in nuis_cols], seed=seed)
+    base_keys = [c.key for c in nuis_cols]
+    cand_keys = {n: [c.key for c in cols] for n, cols in cand_cols.items()}
+    timing["design"] = _time.perf_counter() - t0
+    # ---------------------------------------------------------------- 3. rank
+    t0 = _time.perf_counter()
+    ranking, selected = _rank(reg, base_keys, cand_keys, cand_cols, infos, n_boot=n_boot,
+                              seed=seed, max_effects=max_effects)
+    indist = _indistinguishable(reg, base_keys, cand_keys, ranking, windows, design, infos)
+    timing["rank"] = _time.perf_counter() - t0
+    # ---------------------------------------------------------------- refine (replays)
+    t0 = _time.perf_counter()
+    fitted: dict[str, dict[str, float]] = {}
+    refine_log = []
+    final_preds = preds["base"]
+    nuis_beta = reg.fit(base_keys)[0]
+    if selected:
+        fitted, nuis_theta, final_preds, refine_log = _refine(
+            pool, base, windows, channels, edges, sigma, selected, cand_cols, infos, ranking,
+            nuis_cols, reg, design, iterations=refine_iterations)
+        for e in ranking:
+            if e["effect"] in fitted:
+                e["refined_params"] = fitted[e["effect"]]
+    timing["refine"] = _time.perf_counter() - t0
+    pool.close()
+    # ---------------------------------------------------------------- 4. localise
+    t0 = _time.perf_counter()
+    loc_before = localize(windows, R, channels, edges, sigma, model_df=len(base_keys), seed=seed)
+    R_after = _residual_cube(windows, final_preds, channels, edges) if selected else R
+    n_fit = len(base_keys) + sum(len(cand_keys[s]) for s in selected)
+    loc_after = localize(windows, R_after, channels, edges, sigma, model_df=n_fit, seed=seed)
+    timing["localize"] = _time.perf_counter() - t0
+    # ---------------------------------------------------------------- verdict
+    unexplained = loc_after["n_significant_cells"]
+    if selected:
+        status = "missing_effect"
+        text = ("missing effect" + ("s" if len(selected) > 1 else "") + ": "
+                + "; ".join(_effect_sentence(e) for e in ranking if e["effect"] in selected))
+        if unexplained:
+            text += (f". After adding {', '.join(selected)}, {unexplained} channel × phase "
+                     "cells still show structure (see localization.after)")
+    elif unexplained:
+        status = "unexplained_structure"
+        text = ("no candidate effect explains the residual structure; it is localised in: "
+                + " | ".join(_where_summary(loc_after, 4)))
+    else:
+        status = "no_significant_missing_effect"
+        text = "no significant missing effect: no candidate passes the held-out, AICc and " \
+               "bootstrap tests, and no channel × phase cell shows a systematic residual"
+    # held-out reduction per channel of the added effects (linearised, trial-grouped)
+    channel_red = _channel_heldout(reg, base_keys, [k for s in selected for k in cand_keys[s]],
+                                   design, channels) if selected else {}
+    result = {
+        "data": str(data_dir),
+        "verdict": {"status": status, "text": text, "added": list(selected),
+                    "thresholds": {"min_heldout_error_reduction": MIN_HELDOUT_REDUCTION,
+                                   "max_delta_aicc": MAX_DELTA_AICC,
+                                   "min_inclusion_probability": MIN_INCLUSION,
+                                   "cell_t": T_CELL}},
+        "calibration": {**cal.to_json(),
+                        "replay_adjustment": {c.param: float(c.neutral + beta)
+                                              for c, beta in zip(nuis_cols, nuis_beta)}},
+        "ranking": ranking,
+        "indistinguishable": indist,
+        "fitted_effects": fitted,
+        "heldout_reduction_by_channel": channel_red,
+        "localization": {"where": _where_summary(loc_before, 6), "before": loc_before,
+                         "after": loc_after, "unexplained_where": _where_summary(loc_after, 6),
+                         "n_significant_cells_before": loc_before["n_significant_cells"],
+                         "n_significant_cells_after": unexplained},
+        "design": {"n_stances": len(windows), "n_trials": int(n_trials), "channels": channels,
+                   "phase_bins": phase_bins, "rows": int(reg.y.size),
+                   "n_eff_factor": n_eff_factor, "sigma": sigma, "cv_groups": group_unit,
+                   "cv_folds": len(reg.splits), "diverged_stances": diverged,
+                   "candidates": {n: infos[n].kind for n in infos},
+                   "replays": pool.n_replays, "refine": refine_log},
+        "recommended": _recommend(cal, fitted),
+    }
+    timing["total"] = _time.perf_counter() - t_start
+    result["timing_s"] = timing
+    figs: list[Path] = []
+    out = None
+    if out_dir is not None:
+        out = Path(out_dir)
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(f"cannot write {out}: {exc}") from None
+        if figures:
+            figs = _figures(out, loc_before, loc_after, ranking, channels, edges, R, R_after,
+                            windows, selected)
+        result["figures"] = [p.name for p in figs]
+        (out / "diagnosis.json").write_text(json.dumps(_json_safe(result), indent=1),
+                                            encoding="utf-8")
+        (out / "report.md").write_text(_markdown(result, figs), encoding="utf-8")
+    return Diagnosis(result, out, tuple(figs))
+
+
+# ======================================================================================
+# Ranking helpers
+# ======================================================================================
+
+
+def _rank(reg: Regression, base_keys, cand_keys, cand_cols, infos, *, n_boot, seed,
+          max_effects):
+    sse0, folds0 = reg.cv(base_keys)
+    a0 = reg.aicc(base_keys)
+    rows = []
+    for n, keys in cand_keys.items():
+        sse, folds = reg.cv(base_keys + keys)
+        beta, _ = reg.fit(base_keys + keys)
+        cov = reg.covariance(base_keys + keys, beta)
+        params = {}
+        for k, col in enumerate(cand_cols[n]):
+            j = len(base_keys) + k
+            se = float(math.sqrt(cov[j, j])) if np.isfinite(cov[j, j]) and cov[j, j] >= 0 else None
+            val = col.neutral + float(beta[j])
+            params[col.param] = {"value": val, "se": se,
+                                 "ci_lo": None if se is None else val - 1.96 * se,
+                                 "ci_hi": None if se is None else val + 1.96 * se,
+                                 "unit": col.unit, "neutral": col.neutral,
+                                 "at_bound": bool(np.isclose(val, col.lower) or np.isclose(val, col.upper))}
+        improved = sum(1 for f0, f1 in zip(folds0, folds) if f1 < f0)
+        rows.append({"effect": n, "kind": infos[n].kind,
+                     "heldout_error_reduction": 1.0 - sse / sse0 if sse0 > 0 else 0.0,
+                     "delta_aicc": reg.aicc(base_keys + keys) - a0,
+                     "folds_improved": f"{improved}/{len(folds)}",
+                     "params": params, "main": infos[n].main,
+                     "depends_on": list(infos[n].depends_on), "doc": infos[n].summary})
+    # bootstrap inclusion probability (forward selection by AICc on trial resamples)
+    rng = np.random.default_rng(seed)
+    gs = np.unique(reg.groups)
+    members = {g: np.flatnonzero(reg.groups == g) for g in gs}
+    counts = {n: 0 for n in cand_keys}
+    boot_params = {n: [] for n in cand_keys}
+    B = int(n_boot) if gs.size >= 2 else 0
+    for _ in range(B):
+        pick = rng.choice(gs, gs.size, replace=True)
+        rws = np.concatenate([members[g] for g in pick])
+        chosen = _forward(reg, cand_keys, base_keys, rws, max_terms=max_effects)
+        for n in chosen:
+            counts[n] += 1
+        for n, keys in cand_keys.items():
+            beta, _ = reg.fit(base_keys + keys, rws)
+            boot_params[n].append(beta[len(base_keys):])
+    for r in rows:
+        n = r["effect"]
+        r["inclusion_probability"] = counts[n] / B if B else None
+        bp = np.array(boot_params[n]) if boot_params[n] else None
+        for k, col in enumerate(cand_cols[n]):
+            if bp is not None and len(bp):
+                vals = col.neutral + bp[:, k]
+                r["params"][col.param]["boot_ci_lo"] = float(np.percentile(vals, 2.5))
+                r["params"][col.param]["boot_ci_hi"] = float(np.percentile(vals, 97.5))
+        r["significant"] = bool(r["heldout_error_reduction"] >= MIN_HELDOUT_REDUCTION
+                                and r["delta_aicc"] <= MAX_DELTA_AICC
+                                and (r["inclusion_probability"] or 0.0) >= MIN_INCLUSION)
+    rows.sort(key=lambda r: -r["heldout_error_reduction"])
+    for i, r in enumerate(rows):
+        r["rank"] = i + 1
+    # forward selection of what to add: best significant first, then conditional tests
+    selected: list[str] = []
+    keys_now = list(base_keys)
+    pool = [r["effect"] for r in rows if r["significant"]]
+    while pool and len(selected) < max_effects:
+        best = pool[0] if not selected else None
+        if selected:
+            sse_now, folds_now = reg.cv(keys_now)
+            a_now = reg.aicc(keys_now)
+            best_red = MIN_HELDOUT_REDUCTION
+            for n in pool:
+                sse, _ = reg.cv(keys_now + cand_keys[n])
+                red = 1.0 - sse / sse_now
+                da = reg.aicc(keys_now + cand_keys[n]) - a_now
+                if red >= best_red and da <= MAX_DELTA_AICC:
+                    best, best_red = n, red
+            if best is None:
+                break
+            for r in rows:
+                if r["effect"] == best:
+                    r["conditional_heldout_error_reduction"] = best_red
+        selected.append(best)
+        keys_now = keys_now + cand_keys[best]
+        pool = [p for p in pool if p != best]
+    for r in rows:
+        r["added"] = r["effect"] in selected
+    return rows, selected
+
+
+def _indistinguishable(reg: Regression, base_keys, cand_keys, ranking, windows, design, infos):
+    """Pairs of leading candidates whose fitted contributions are nearly collinear."""
+    if not ranking or ranking[0]["heldout_error_reduction"] <= 0:
+        return []
+    top = ranking[0]
+    contenders = [r for r in ranking[1:6]
+                  if r["heldout_error_reduction"] >= 0.5 * top["heldout_error_reduction"]]
+    Xn, _, _ = reg.matrix(base_keys)
+
+    def contribution(name):
+        keys = base_keys + cand_keys[name]
+        beta, _ = reg.fit(keys)
+        X, _, _ = reg.matrix(cand_keys[name])
+        v = X @ beta[len(base_keys):]
+        if Xn.shape[1]:
+            v = v - Xn @ np.linalg.lstsq(Xn, v, rcond=None)[0]
+        return v
+
+    v0 = contribution(top["effect"])
+    out = []
+    for r in contenders:
+        v1 = contribution(r["effect"])
+        den = float(np.linalg.norm(v0) * np.linalg.norm(v1))
+        corr = float(v0 @ v1 / den) if den > 0 else 0.0
+        if abs(corr) >= 0.9:
+            out.append({"effects": [top["effect"], r["effect"]], "correlation": corr,
+                        "heldout_error_reduction": [top["heldout_error_reduction"],
+                                                    r["heldout_error_reduction"]],
+                        "experiment": _separating_experiment(top["effect"], r["effect"], reg,
+                                                             cand_keys, base_keys, design,
+                                                             windows, infos)})
+    return out
+
+
+def _separating_experiment(a: str, b: str, reg, cand_keys, base_keys, design, windows,
+                           infos) -> str:
+    """The measured variable along which the two candidates' columns differ most."""
+    feats = list(FEATURE_EXPERIMENTS)
+    ok = reg.ok
+    wid = design.window[ok]
+    pb = design.phase_bin[ok]
+    Xa, _, _ = reg.matrix(cand_keys[a])
+    Xb, _, _ = reg.matrix(cand_keys[b])
+    va, vb = Xa.sum(axis=1), Xb.sum(axis=1)
+    best, gap = None, 0.0
+    for f in feats:
+        x = np.full(va.size, np.nan)
+        for i, w in enumerate(windows):
+            m = wid == i
+            if not m.any():
+                continue
+            if f == "commanded_speed":
+                x[m] = w.speed
+                continue
+            if f not in w.features:
+                continue
+            edges = np.linspace(0, 100, int(pb[m].max()) + 2) if (pb[m] >= 0).any() else None
+            if edges is None:
+                continue
+            vals = _bin_means(w, w.features, [f], np.linspace(0, 100, 11))[0]
+            x[m] = vals[np.clip(pb[m], 0, vals.size - 1)]
+        ra, _ = _spearman(x, np.abs(va))
+        rb, _ = _spearman(x, np.abs(vb))
+        if ra == ra and rb == rb and abs(ra - rb) > gap:
+            best, gap = f, abs(ra - rb)
+    da = ", ".join(infos[a].depends_on) or "its own signature"
+    db = ", ".join(infos[b].depends_on) or "its own signature"
+    where = FEATURE_EXPERIMENTS.get(best, "a wider range of conditions") if best else \
+        "a wider range of speeds and depths"
+    return (f"{a} scales with {da}; {b} with {db}. In this data their effects differ most "
+            f"along '{best}'; an experiment with {where} would separate them.")
+
+
+def _effect_sentence(e: dict) -> str:
+    main = e["main"]
+    p = e.get("refined_params", {}).get(main, e["params"].get(main, {}).get("value"))
+    unit = e["params"].get(main, {}).get("unit", "")
+    return (f"{e['effect']} ({e['kind']}; {main} = {p:.4g} {unit}; held-out error "
+            f"−{100 * e['heldout_error_reduction']:.1f} %, ΔAICc {e['delta_aicc']:.0f}, "
+            f"inclusion {e['inclusion_probability']:.2f})")
+
+
+def _channel_heldout(reg: Regression, base_keys, add_keys, design, channels) -> dict:
+    """Per channel: held-out (trial-grouped CV) RMS of the weighted residual before and
+    after adding ``add_keys`` (linearised), in channel units."""
+    ch_rows = design.channel[reg.ok]
+    before = {c: 0.0 for c in list(channels) + ["touchdown_z"]}
+    after = dict(before)
+    count = dict(before)
+    for tr, te in reg.splits:
+        X0, lb0, ub0 = reg.matrix(base_keys)
+        b0 = _fit(X0[tr], reg.y[tr], lb0, ub0)
+        X1, lb1, ub1 = reg.matrix(base_keys + add_keys)
+        b1 = _fit(X1[tr], reg.y[tr], lb1, ub1)
+        r0 = reg.y[te] - X0[te] @ b0
+        r1 = reg.y[te] - X1[te] @ b1
+        for c in before:
+            m = ch_rows[te] == c
+            before[c] += float(r0[m] @ r0[m])
+            after[c] += float(r1[m] @ r1[m])
+            count[c] += int(m.sum())
+    out = {}
+    for c in before:
+        if count[c] == 0:
+            continue
+        s = design.sigma.get(c, 1.0)
+        rb = s * math.sqrt(before[c] / count[c])
+        ra = s * math.sqrt(after[c] / count[c])
+        out[c] = {"before": rb, "after": ra,
+                  "reduction": 1.0 - ra / rb if rb > 0 else 0.0,
+                  "unit": channel_unit(c) if c != "touchdown_z" else "m"}
+    return out
+
+
+def _refine(pool, base: Variant, windows, channels, edges, sigma, selected, cand_cols, infos,
+            ranking, nuis_cols, reg, design, *, iterations: int):
+    """Gauss–Newton on the replays for the selected effects' magnitude columns."""
+    cols = [c for s in selected for c in cand_cols[s]]
+    values = {}
+    for r in ranking:
+        if r["effect"] in selected:
+            for p, v in r["params"].items():
+                values[(r["effect"], p)] = float(v["value"])
+    theta_nuis = {c.param: c.neutral for c in nuis_cols}
+    log = []
+    ch_idx = np.tile(np.repeat(np.arange(len(channels)), len(edges) - 1), len(windows))
+    sig_vec = np.array([sigma[ch] for ch in channels])[ch_idx]
+    geo_rows = design.channel == "touchdown_z"
+    preds = None
+
+    def variant_with(vals, nuis):
+        specs = []
+        for s in selected:
+            info = infos[s]
+            p = info.neutral_params()
+            for c in cand_cols[s]:
+                p[c.param] = vals[(s, c.param)]
+            specs.append((info, p))
+        return effect_variant(specs, base.with_theta(**nuis))
+
+    for it in range(max(1, iterations)):
+        variants = {"cur": variant_with(values, theta_nuis)}
+        steps = {}
+        for c in cols:
+            v = dict(values)
+            cur = v[(c.candidate, c.param)]
+            step = 0.25 * (cur - c.neutral) if abs(cur - c.neutral) > 1e-9 else c.step
+            if not (c.lower <= cur + step <= c.upper):
+                step = -step
+            v[(c.candidate, c.param)] = cur + step
+            steps[c.key] = step
+            variants[c.key] = variant_with(v, theta_nuis)
+        for c in nuis_cols:
+            steps[c.key] = c.step
+            variants[c.key] = variant_with(values, {**theta_nuis,
+                                                    c.param: theta_nuis[c.param] + c.step})
+        out = pool.run(variants)
+        preds = out["cur"]
+        Rc = _residual_cube(windows, preds, channels, edges)
+        P0 = _pred_cube(windows, preds, channels, edges)
+        y = Rc.ravel() / sig_vec
+        Xs = {k: (_pred_cube(windows, out[k], channels, edges) - P0).ravel() / steps[k] / sig_vec
+              for k in steps}
+        # geometry rows: linear in the slope, residual from the current values
+        yg = reg.d.y[geo_rows].copy()
+        keys = list(steps)
+        Xg = {k: reg.d.X[k][geo_rows] if k in reg.d.X else np.zeros(int(geo_rows.sum()))
+              for k in keys}
+        for c in cols:
+            yg = yg - Xg[c.key] * (values[(c.candidate, c.param)] - c.neutral)
+        Y = np.concatenate([y, yg])
+        A = np.column_stack([np.concatenate([Xs[k], Xg[k]]) for k in keys])
+        ok = np.isfinite(Y) & np.isfinite(A).all(axis=1)
+        lb, ub = [], []
+        for k in keys:
+            c = next((c for c in cols if c.key == k), None)
+            if c is not None:
+                cur = values[(c.candidate, c.param)]
+                lb.append(c.lower - cur)
+                ub.append(c.upper - cur)
+            else:
+                cn = next(c for c in nuis_cols if c.key == k)
+                lb.append(cn.lower - theta_nuis[cn.param])
+                ub.append(cn.upper - theta_nuis[cn.param])
+        delta = _fit(A[ok], Y[ok], np.array(lb), np.array(ub))
+        rss = float(np.sum((Y[ok] - A[ok] @ delta) ** 2))
+        log.append({"iteration": it + 1, "weighted_rss_before": float(np.sum(Y[ok] ** 2)),
+                    "weighted_rss_linear_after": rss,
+                    "values": {f"{a}.{b}": v for (a, b), v in values.items()}})
+        for k, dlt in zip(keys, delta):
+            c = next((c for c in cols if c.key == k), None)
+            if c is not None:
+                values[(c.candidate, c.param)] = float(np.clip(
+                    values[(c.candidate, c.param)] + dlt, c.lower, c.upper))
+            else:
+                cn = next(c for c in nuis_cols if c.key == k)
+                theta_nuis[cn.param] = float(np.clip(theta_nuis[cn.param] + dlt, cn.lower,
+                                                     cn.upper))
+    final = pool.run({"final": variant_with(values, theta_nuis)})["final"]
+    Rf = _residual_cube(windows, final, channels, edges).ravel() / sig_vec
+    log.append({"iteration": "final", "weighted_rss": float(np.nansum(Rf ** 2)),
+                "values": {f"{a}.{b}": v for (a, b), v in values.items()},
+                "calibration": theta_nuis})
+    fitted: dict[str, dict[str, float]] = {}
+    for s in selected:
+        p = infos[s].neutral_params()
+        for c in cand_cols[s]:
+            p[c.param] = values[(s, c.param)]
+        fitted[s] = p
+    return fitted, theta_nuis, final, log
+
+
+def _recommend(cal, fitted: Mapping[str, Mapping[str, float]]) -> dict:
+    eff = [f"{n}:" + ",".join(f"{k}={v:.6g}" for k, v in p.items()) for n, p in fitted.items()]
+    params = {k: v for k, v in cal.values.items()}
+    return {"effects": eff, "calibrated_params": params,
+            "validate_command": ("granular-mpc validate DATA --params DIAG_DIR/diagnosis.json "
+                                 + " ".join(f"--effect {n}" for n in fitted)).strip()}
+
+
+# ======================================================================================
+# Report
+# ======================================================================================
+
+
+def _figures(out: Path, loc_before, loc_after, ranking, channels, edges, R, R_after, windows,
+             selected) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    paths = []
+    # 1. t-statistics heatmap before / after
+    fig = Figure(figsize=(11, 5), constrained_layout=True)
+    axes = fig.subplots(1, 2)
+    for ax, loc, title in ((axes[0], loc_before, "calibrated model"),
+                           (axes[1], loc_after, "after added effects" if selected
+                            else "(nothing added)")):
+        T = np.zeros((len(channels), len(edges) - 1))
+        for cl in loc["cells"]:
+            c = channels.index(cl["channel"])
+            b = int(np.searchsorted(edges, cl["phase_lo"] + 1e-9) - 1)
+            T[c, b] = cl["t"]
+        lim = max(T_CELL * 2, float(np.nanmax(np.abs(T))) if T.size else 1.0)
+        im = ax.imshow(T, aspect="auto", cmap="RdBu_r", vmin=-lim, vmax=lim)
+        ax.set_yticks(range(len(channels)), labels=channels, fontsize=7)
+        ax.set_xticks(range(len(edges) - 1), labels=[f"{edges[i]:g}" for i in range(len(edges) - 1)],
+                      fontsize=7)
+        ax.set_xlabel("stance phase bin start [%]")
+        ax.set_title(f"residual bias t-statistic: {title}", fontsize=9)
+    fig.colorbar(im, ax=axes, label="t (|t| ≥ %g: structure)" % T_CELL)
+    p = out / "residual_tstat.png"
+    fig.savefig(p, dpi=110)
+    paths.append(p)
+    # 2. ranking
+    fig = Figure(figsize=(7, 0.35 * max(len(ranking), 3) + 1.2), constrained_layout=True)
+    ax = fig.subplots()
+    names = [r["effect"] for r in ranking][::-1]
+    vals = [100 * r["heldout_error_reduction"] for r in ranking][::-1]
+    colors = ["tab:green" if r["added"] else ("tab:orange" if r["significant"] else "tab:gray")
+              for r in ranking][::-1]
+    ax.barh(names, vals, color=colors)
+    ax.axvline(100 * MIN_HELDOUT_REDUCTION, color="k", ls="--", lw=0.8)
+    ax.set_xlabel("held-out error reduction [%] (green: added)")
+    ax.set_title("candidate effects, trial-grouped cross-validation", fontsize=9)
+    p = out / "ranking.png"
+    fig.savefig(p, dpi=110)
+    paths.append(p)
+    # 3. mean residual profiles of the most structured channels, before / after
+    top = []
+    for cl in loc_before["significant_cells"]:
+        if cl["channel"] not in top:
+            top.append(cl["channel"])
+        if len(top) == 4:
+            break
+    if not top:
+        top = channels[:4]
+    fig = Figure(figsize=(10, 2.6 * ((len(top) + 1) // 2)), constrained_layout=True)
+    axes = np.atleast_2d(fig.subplots((len(top) + 1) // 2, 2))
+    mid = 0.5 * (edges[1:] + edges[:-1])
+    for k, ch in enumerate(top):
+        ax = axes[k // 2, k % 2]
+        c = channels.index(ch)
+        for cube, lab, col in ((R, "calibrated", "tab:red"), (R_after, "after", "tab:blue")):
+            m = np.nanmean(cube[:, c, :], axis=0)
+            s = np.nanstd(cube[:, c, :], axis=0) / math.sqrt(max(cube.shape[0], 1))
+            ax.errorbar(mid, m, yerr=1.96 * s, label=lab, color=col, capsize=2)
+        ax.axhline(0, color="k", lw=0.6)
+        ax.set_title(f"{ch}: mean residual (measured − model)", fontsize=9)
+        ax.set_xlabel("stance phase [%]")
+        ax.set_ylabel(channel_unit(ch))
+        ax.legend(fontsize=7)
+    for k in range(len(top), axes.size):
+        axes[k // 2, k % 2].set_visible(False)
+    p = out / "residual_profiles.png"
+    fig.savefig(p, dpi=110)
+    paths.append(p)
+    return paths
+
+
+def _markdown(res: dict, figs: Sequence[Path]) -> str:
+    v = res["verdict"]
+    cal = res["calibration"]
+    lines = [f"# Diagnosis of `{res['data']}`", "",
+             f"**Verdict ({v['status'].replace('_', ' ')}):** {v['text']}", "",
+             "## Calibration (own parameters)", "",
+             "| parameter | before | calibrated | 95 % CI (Gauss–Newton) | 95 % CI (trial bootstrap) |",
+             "|---|---|---|---|---|"]
+    for k, val in cal["values"].items():
+        conv = math.degrees if k == "phi_s" else (lambda x: x)
+        name = "phi_s [deg]" if k == "phi_s" else k
+        gn = cal["ci_gn"].get(k, [None, None])
+        bt = cal["ci_bootstrap"].get(k, [None, None])
+
+        def fmt(iv):
+            return "–" if iv[0] is None else f"[{conv(iv[0]):.4g}, {conv(iv[1]):.4g}]"
+        lines.append(f"| {name} | {conv(cal['initial'][k]):.4g} | {conv(val):.4g} | {fmt(gn)} | {fmt(bt)} |")
+    lines += ["", f"{cal['n_samples']} sinking samples from {cal['n_stances']} stances; "
+              f"force residual {cal['rmse_before_N']:.2f} N → {cal['rmse_after_N']:.2f} N. "
+              + cal.get("note", ""), "",
+              "## Candidate effects", "",
+              "| rank | effect | kind | held-out error reduction | ΔAICc | inclusion | main coefficient | added |",
+              "|---|---|---|---|---|---|---|---|"]
+    for r in res["ranking"]:
+        main = r["main"]
+        p = r["params"].get(main, {})
+        val = r.get("refined_params", {}).get(main, p.get("value"))
+        ci = (f" [{p.get('boot_ci_lo', float('nan')):.3g}, {p.get('boot_ci_hi', float('nan')):.3g}]"
+              if "boot_ci_lo" in p else "")
+        inc = r["inclusion_probability"]
+        lines.append(f"| {r['rank']} | {r['effect']} | {r['kind']} | "
+                     f"{100 * r['heldout_error_reduction']:.1f} % | {r['delta_aicc']:.0f} | "
+                     f"{'–' if inc is None else f'{inc:.2f}'} | {main} = {val:.4g}{ci} {p.get('unit', '')} | "
+                     f"{'**yes**' if r['added'] else 'no'} |")
+    if res["indistinguishable"]:
+        lines += ["", "## Candidates the data cannot tell apart", ""]
+        for g in res["indistinguishable"]:
+            lines.append(f"* {' vs '.join(g['effects'])} (correlation {g['correlation']:.2f}): "
+                         f"{g['experiment']}")
+    loc = res["localization"]
+    lines += ["", "## Where the calibrated model fails", ""]
+    lines += [f"* {s}" for s in loc["where"]] or ["* no channel × phase cell with |t| ≥ "
+                                                   f"{T_CELL:g}"]
+    if v["added"]:
+        lines += ["", "## After adding " + ", ".join(v["added"]), ""]
+        lines += [f"* {s}" for s in loc["unexplained_where"]] or ["* no structure left"]
+        red = res.get("heldout_reduction_by_channel", {})
+        if red:
+            lines += ["", "| channel | held-out RMS before | after | reduction |", "|---|---|---|---|"]
+            for c, d in red.items():
+                lines.append(f"| {c} | {d['before']:.4g} {d['unit']} | {d['after']:.4g} | "
+                             f"{100 * d['reduction']:.0f} % |")
+    lines += ["", "## Figures", ""] + [f"![{p.stem}]({p.name})" for p in figs]
+    rec = res["recommended"]
+    lines += ["", "## Next step", "", f"`{rec['validate_command']}`", ""]
+    return "\n".join(lines)
+
+
+__all__ = ["diagnose", "Diagnosis", "localize", "candidate_columns", "Column",
+           "MIN_HELDOUT_REDUCTION", "MAX_DELTA_AICC", "MIN_INCLUSION", "T_CELL"]
