@@ -313,16 +313,43 @@ def _parse_noise(items: list[str]) -> dict[str, float]:
 
 def _effects(items: list[str]):
     from .config import EffectSpec
-    from .terrain import get_effect
+    from .terrain.effects_library import effect_info
 
     specs = [EffectSpec.model_validate(e) for e in items]
     for s in specs:
-        get_effect(s.name)  # unknown name → one clear error listing the registered ones
+        effect_info(s.name)  # unknown name → one clear error listing the registered ones
     return specs
 
 
+def _load_effect_files(files: list[Path] | None) -> list[str]:
+    from .terrain.effects import load_effect_file
+
+    names: list[str] = []
+    for f in files or []:
+        names += load_effect_file(str(f))
+    return names
+
+
+def _speeds(items: list[str] | None) -> list[float] | None:
+    if not items:
+        return None
+    out = []
+    for item in items:
+        for part in filter(None, (p.strip() for p in item.split(","))):
+            try:
+                out.append(float(part))
+            except ValueError:
+                raise ConfigError(f"speed {part!r} is not a number", key="--speeds") from None
+    return out
+
+
 EffectOpt = Annotated[Optional[list[str]], typer.Option(
-    "--effect", "-e", metavar="NAME[:k=v,…]", help="A registered physical effect (repeatable).")]
+    "--effect", "-e", metavar="NAME[:k=v,…]", help="A registered physical effect of any kind "
+    "(terrain force, joint, sensor, geometry; repeatable).")]
+EffectFileOpt = Annotated[Optional[list[Path]], typer.Option(
+    "--effect-file", metavar="FILE.py", help="Python file registering user effects (repeatable).")]
+TerrainOpt = Annotated[str, typer.Option("--terrain", help="The model's terrain (name in models/terrain or a path).")]
+WorkersOpt = Annotated[Optional[int], typer.Option("--workers", help="Processes for the replays (default: all CPUs).")]
 
 
 @app.command()
@@ -330,20 +357,30 @@ def synth(
     config: Annotated[str, typer.Argument(help="Scenario YAML the plant is built from.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Data set folder to write (format v1).")],
     effect: EffectOpt = None,
-    noise: Annotated[Optional[list[str]], typer.Option("--noise", metavar="PREFIX=STD", help="Gaussian noise std. dev. per column or column prefix, column units (repeatable), e.g. grf_=0.5.")] = None,
+    noise: Annotated[Optional[list[str]], typer.Option("--noise", metavar="PREFIX=STD", help="Gaussian noise std. dev. per column or column prefix, column units (repeatable), e.g. grf_=0.5; 'level=L' scales the realistic sensor model (default level=1; level=0: none).")] = None,
     seed: Annotated[Optional[int], typer.Option("--seed", help="Random seed (default: the scenario's sim.seed).")] = None,
+    speeds: Annotated[Optional[list[str]], typer.Option("--speeds", metavar="V[,V…]", help="Commanded speeds [m/s], one trial each (default: the scenario's).")] = None,
+    steps: Annotated[Optional[int], typer.Option("--steps", help="Stance phases recorded per trial (default 10).")] = None,
+    duration: Annotated[Optional[float], typer.Option("--duration", help="Recorded seconds per trial (instead of --steps).")] = None,
+    repeats: Annotated[int, typer.Option("--repeats", help="Trials per speed.")] = 1,
+    fmt: Annotated[str, typer.Option("--format", help="csv or parquet.")] = "csv",
+    effect_file: EffectFileOpt = None,
     set_: SetOpt = None,
     debug: DebugOpt = False,
 ) -> None:
-    """Generate a measurement data set with the plant (+ extra effects, sensor noise)."""
+    """Generate a measurement data set with the plant (+ hidden effects, sensor noise)."""
     from .scenario import find_scenario, load_scenario
 
     fn = _workbench("synth", "synthesize", "synth")
     with _errors(debug):
+        _load_effect_files(effect_file)
         scenario = load_scenario(config, set_ or [])
-        fn(scenario, out, effects=_effects(effect or []), noise=_parse_noise(noise or []),
-           seed=scenario.sim.seed if seed is None else seed,
-           scenario_path=find_scenario(config))
+        res = fn(scenario, out, effects=_effects(effect or []), noise=_parse_noise(noise or []),
+                 seed=scenario.sim.seed if seed is None else seed,
+                 scenario_path=find_scenario(config), speeds=_speeds(speeds), steps=steps,
+                 duration=duration, repeats=repeats, format=fmt)
+        for note in getattr(res, "notes", ()):
+            _err(f"note: {note}")
         print(f"wrote {out}")
 
 
@@ -353,6 +390,10 @@ def validate(
     out: Annotated[Path, typer.Option("--out", "-o", help="Report folder (report.json + figures).")],
     model: Annotated[str, typer.Option("--model", help="granular, rigid or planar.")] = "granular",
     effect: EffectOpt = None,
+    params: Annotated[Optional[Path], typer.Option("--params", help="diagnosis.json (or its folder) with calibrated and fitted parameters.")] = None,
+    terrain: TerrainOpt = "dry_sand",
+    effect_file: EffectFileOpt = None,
+    workers: WorkersOpt = None,
     debug: DebugOpt = False,
 ) -> None:
     """Compare the model with measurements: DIR/report.json (RMSE by channel, phase, speed)."""
@@ -361,20 +402,41 @@ def validate(
         if model not in ("granular", "rigid", "planar"):
             raise ConfigError(f"unknown model {model!r}", key="--model",
                               allowed="granular, rigid, planar")
-        fn(data_dir, out, model=model, effects=_effects(effect or []))
+        _load_effect_files(effect_file)
+        rep = fn(data_dir, out, model=model, effects=_effects(effect or []), params=params,
+                 terrain=terrain, workers=workers)
+        ba = getattr(rep, "report", {}).get("before_after")
+        if ba:
+            for ch, d in ba.items():
+                if d.get("change_pct") is not None:
+                    print(f"{ch}: RMSE {d['before']:.4g} -> {d['after']:.4g} "
+                          f"({d['change_pct']:+.0f} %)")
         print(f"wrote {out / 'report.json'}")
 
 
 @app.command()
 def diagnose(
     data_dir: Annotated[Path, typer.Argument(help="Measurement data set folder (format v1).")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for diagnosis.json + figures.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for diagnosis.json + report.md + figures.")],
+    candidate: Annotated[Optional[list[str]], typer.Option("--candidate", metavar="NAME", help="Candidate effect to test (repeatable; default: every registered effect).")] = None,
+    seed: Annotated[int, typer.Option("--seed", help="Bootstrap seed.")] = 0,
+    terrain: TerrainOpt = "dry_sand",
+    effect_file: EffectFileOpt = None,
+    workers: WorkersOpt = None,
     debug: DebugOpt = False,
 ) -> None:
-    """Find which physical effect the model misses: DIR/diagnosis.json."""
+    """Calibrate the model, then find which physical effect it misses: DIR/diagnosis.json."""
     fn = _workbench("diagnose", "diagnose", "diagnose")
     with _errors(debug):
-        fn(data_dir, out)
+        _load_effect_files(effect_file)
+        if candidate:
+            for c in candidate:
+                _effects([c])
+        res = fn(data_dir, out, candidates=candidate or None, seed=seed, terrain=terrain,
+                 workers=workers)
+        verdict = getattr(res, "result", {}).get("verdict", {})
+        if verdict:
+            print(verdict.get("text", ""))
         print(f"wrote {out / 'diagnosis.json'}")
 
 

@@ -23,9 +23,13 @@ def test_sand_controller_derives_its_gait_from_the_ground(biped, sand, rigid):
     assert lt == pytest.approx(z_w / cfg.mpc.max_sink_rate, rel=0.02)
     assert c_sand.config.gait.swing_fraction == pytest.approx(0.5 - lt / 0.4, rel=1e-6)
     assert c_rigid.config.gait.swing_fraction == 0.5 and c_rigid.config.gait.load_transfer == 0.0
-    # step width narrowed so the LIP's lateral force fits the sand's lateral capacity
-    assert c_sand.step_width < c_rigid.step_width == cfg.foothold.step_width
-    assert c_sand.step_width == pytest.approx(
+    # a wide nominal stance is narrowed so the LIP's lateral force fits the sand's
+    # lateral capacity (rigid ground keeps it)
+    wide = cfg.model_copy(update={"foothold": cfg.foothold.model_copy(update={"step_width": 0.19})})
+    w_sand = WalkingController.build(wide, CommandConfig(), biped, sand).step_width
+    w_rigid = WalkingController.build(wide, CommandConfig(), biped, rigid).step_width
+    assert w_sand < w_rigid == 0.19
+    assert w_sand == pytest.approx(
         2 * cfg.foothold.lateral_margin * c_sand.ground.lateral_ratio * cfg.mpc.com_height)
     # the QP size follows the gait: double support adds (step, foot) blocks on sand
     assert c_sand.mpc.max_pairs > c_rigid.mpc.max_pairs == cfg.mpc.horizon

@@ -31,8 +31,11 @@ def synth():
     return make_log(6)
 
 
-def _stack(L, column_of_side, grid, scale=1.0):
-    return np.vstack([scale * interp_segment(L.df, column_of_side(s), a, b, grid)
+def _stack(L, column_of_side, grid, scale=1.0, mirror_right=False):
+    """Stance-resampled signals; ``mirror_right`` flips right-foot stances (lateral axes
+    are plotted positive outward)."""
+    return np.vstack([scale * (-1.0 if mirror_right and s == "right" else 1.0)
+                      * interp_segment(L.df, column_of_side(s), a, b, grid)
                       for s, a, b in L.segments])
 
 
@@ -79,10 +82,11 @@ def test_grf_and_intrusion_bands_equal_numpy(synth, tmp_path):
     _assert_png(grf.path)
     _assert_png(intr.path)
     for ax in "xyz":
-        f = _stack(synth, lambda s: f"{s}_grf_{ax}", grid)
+        lat = ax == "y"
+        f = _stack(synth, lambda s: f"{s}_grf_{ax}", grid, mirror_right=lat)
         b = grf.data[grf.data.channel == f"grf_{ax}"]
         assert np.allclose(b["mean"], f.mean(0)) and np.allclose(b["sd"], f.std(0, ddof=1))
-        z = _stack(synth, lambda s: f"{s}_intrusion_{ax}", grid, scale=1000.0)
+        z = _stack(synth, lambda s: f"{s}_intrusion_{ax}", grid, scale=1000.0, mirror_right=lat)
         b = intr.data[intr.data.channel == f"intrusion_{ax}"]
         assert np.allclose(b["mean"], z.mean(0)) and np.allclose(b["sd"], z.std(0, ddof=1))
     assert (intr.data.unit == "mm").all() and (grf.data.unit == "N").all()

@@ -46,6 +46,17 @@ class ForcePolytope:
         """The same set for one of several contact points sharing the foot's load."""
         return ForcePolytope(self.G, self.h * share, self.f_max * share)
 
+    @property
+    def cone_rows(self) -> np.ndarray:
+        """Rows with h = 0: a friction-like cone, the same for any share of the load
+        (applied to each contact point)."""
+        return np.flatnonzero(self.h <= 0.0)
+
+    @property
+    def capacity_rows(self) -> np.ndarray:
+        """Rows with h > 0: what the ground bears in total (applied to a foot's sum)."""
+        return np.flatnonzero(self.h > 0.0)
+
     def contains(self, f: np.ndarray, tol: float = 1e-6) -> bool:
         return bool(np.all(self.G @ f <= self.h + tol) and -tol <= f[2] <= self.f_max + tol)
 

@@ -21,8 +21,9 @@ forces against sinkage. Force constraints come from :mod:`.contact_model`.
 The QP: ``min ½ UᵀHU + gᵀU`` with one block of variables per *(step, foot in contact)*
 pair — the forces of that foot's contact points. Its size is fixed per controller: the
 largest number of such pairs any horizon of the gait can contain (N for a single-support
-gait, a few more with double support); unused blocks are padding held at zero. Each
-contact point carries its share of the ground polytope.
+gait, a few more with double support); unused blocks are padding held at zero. The ground
+polytope's cone rows (friction-like, no bound) hold for each contact point, its capacity
+rows (with a bound) for the foot's total force.
 """
 
 from __future__ import annotations
@@ -106,7 +107,8 @@ class CentroidalMPC:
 
     @property
     def rows_per_pair(self) -> int:
-        return self.n_points * self.ground.polytope.G.shape[0]
+        poly = self.ground.polytope
+        return self.n_points * len(poly.cone_rows) + len(poly.capacity_rows)
 
     @property
     def n_in(self) -> int:
@@ -196,27 +198,31 @@ class CentroidalMPC:
                 H[np.ix_(jz, jz)] += 2.0 * c.weight_sinkage * a * a
                 g[jz] += 2.0 * c.weight_sinkage * a * (z0 - a * F0)
         H = 0.5 * (H + H.T)
-        # constraints: each contact point carries its share of the ground polytope (a
-        # point's friction / shear is bounded by its own normal force: no free moments)
-        poly = self.ground.polytope.scaled(1.0 / nps)
-        Gw = poly.G @ Rz.T
-        nr = Gw.shape[0]
+        # constraints: the polytope's cone rows (h = 0) on each contact point (a point's
+        # friction / shear is bounded by its own normal force: no free moments), its
+        # capacity rows (h > 0) on the foot's total force
+        poly = self.ground.polytope
+        cone = poly.G[poly.cone_rows] @ Rz.T
+        capr = poly.G[poly.capacity_rows] @ Rz.T
+        nc, nk = cone.shape[0], capr.shape[0]
         C = np.zeros((self.n_in, self.nu))
         u = np.zeros(self.n_in)
         lb = np.zeros(self.nu)
         ub = np.zeros(self.nu)
+        rows_pp = self.rows_per_pair
         for j, (k, f) in enumerate(pairs):
             share = 1.0
             if capacity is not None:
-                share = min(max(capacity[k, f] / self.ground.polytope.f_max, 0.0), 1.0)
+                share = min(max(capacity[k, f] / poly.f_max, 0.0), 1.0)
+            r0 = j * rows_pp
             for i in range(nps):
-                rows = slice((j * nps + i) * nr, (j * nps + i + 1) * nr)
                 col = j * npair + 3 * i
-                C[rows, col:col + 3] = Gw
-                u[rows] = poly.h * share
+                C[r0 + i * nc: r0 + (i + 1) * nc, col:col + 3] = cone
+                C[r0 + nps * nc: r0 + rows_pp, col:col + 3] = capr
                 lb[col:col + 2] = -BIG
                 ub[col:col + 2] = BIG
-                ub[col + 2] = poly.f_max * share
+                ub[col + 2] = poly.f_max * share / nps
+            u[r0 + nps * nc: r0 + rows_pp] = poly.h[poly.capacity_rows] * share
         l = np.full(self.n_in, -BIG)
         build_ms = (time.perf_counter() - t0) * 1e3
         sol = data.solver.solve(QPProblem(H, g, None, None, C, l, u, lb, ub))

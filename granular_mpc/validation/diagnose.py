@@ -56,6 +56,7 @@ from .replay import (ReplayPool, Variant, _json_safe, build_replay_model, effect
 MIN_HELDOUT_REDUCTION = 0.02      # at least 2 % less held-out weighted SSE
 MAX_DELTA_AICC = -10.0            # "strong" evidence (Burnham–Anderson)
 MIN_INCLUSION = 0.6               # selected in most bootstrap refits
+MIN_STANCE_REDUCTION = 0.01       # and ≥ 1 % less held-out error stance by stance
 T_CELL = 4.0                      # |t| of a channel × phase cell that counts as structure
 
 FEATURE_EXPERIMENTS = {
@@ -429,11 +430,88 @@ class Diagnosis:
         return list(self.result["verdict"]["added"])
 
 
+def _group_keys(windows: Sequence[StanceWindow]) -> np.ndarray:
+    """Stance groups of the systematic-structure rows: (trial, stance side)."""
+    return np.array([f"{w.trial}|{w.side}" for w in windows])
+
+
+def _sigma(R: np.ndarray, channels, groups: np.ndarray) -> dict:
+    """Per channel: stance-to-stance scatter of the binned residual within groups."""
+    sigma = {}
+    for c, ch in enumerate(channels):
+        var = []
+        for g in np.unique(groups):
+            v = R[groups == g, c, :]
+            if v.shape[0] >= 2:
+                var.append(np.nanvar(v, axis=0, ddof=1))
+        s = float(np.sqrt(np.nanmean(np.concatenate(var)))) if var else float(np.nanstd(R[:, c]))
+        sigma[ch] = s if s > 0 and math.isfinite(s) else 1.0
+    return sigma
+
+
+def _lag1_factor(Z: np.ndarray) -> float:
+    """N_eff / N from the lag-1 autocorrelation along the phase bins of Z (rows, C, B)."""
+    Zc = Z - np.nanmean(Z, axis=(0, 2), keepdims=True)
+    a, b = Zc[:, :, 1:], Zc[:, :, :-1]
+    m = np.isfinite(a) & np.isfinite(b)
+    den = float(np.nansum(Zc ** 2))
+    rho = float(np.sum(a[m] * b[m]) / den) if den > 0 else 0.0
+    rho = min(max(rho, 0.0), 0.95)
+    return (1.0 - rho) / (1.0 + rho)
+
+
+def build_design(level: str, windows: Sequence[StanceWindow], R: np.ndarray,
+                 sens: Mapping[str, np.ndarray], channels: Sequence[str], sigma: Mapping[str, float],
+                 geo: Mapping[str, Any]) -> Design:
+    """Weighted rows for the regression.
+
+    ``level="stance"``: one row per stance × channel × phase bin (weight 1/σ_c).
+    ``level="group"``: one row per (trial, side) group × channel × bin, the mean over the
+    group's stances (weight √n_g/σ_c) — the *systematic* structure: random replay drift
+    (noisy initial states) averages out, so a term that only damps that drift gains
+    nothing here. Geometry rows (touchdown heights) are appended in both.
+    """
+    W, C, B = R.shape
+    trials = np.array([w.trial for w in windows])
+    sig = np.array([sigma[ch] for ch in channels])
+    if level == "stance":
+        keys = np.arange(W).astype(str)
+        Rg = R
+        cubes = dict(sens)
+        scale = np.ones(W)
+        gtrial = trials
+        gwin = np.arange(W)
+    else:
+        gk = _group_keys(windows)
+        keys = np.unique(gk)
+        Rg = np.stack([np.nanmean(R[gk == k], axis=0) for k in keys])
+        cubes = {c: np.stack([np.nanmean(S[gk == k], axis=0) for k in keys]) for c, S in sens.items()}
+        scale = np.array([math.sqrt((gk == k).sum()) for k in keys])
+        gtrial = np.array([k.split("|")[0] for k in keys])
+        gwin = np.full(len(keys), -1)
+    G = Rg.shape[0]
+    w_idx = np.repeat(np.arange(G), C * B)
+    ch_idx = np.tile(np.repeat(np.arange(C), B), G)
+    b_idx = np.tile(np.arange(B), G * C)
+    wvec = scale[w_idx] / sig[ch_idx]
+    y = np.concatenate([Rg.ravel() * wvec, geo["y"] / geo["sigma"]])
+    X = {}
+    for k, S in cubes.items():
+        g = geo["sens"].get(k, np.zeros(W))
+        X[k] = np.concatenate([S.ravel() * wvec, g / geo["sigma"]])
+    groups = np.concatenate([gtrial[w_idx], trials])
+    Z = Rg * scale[:, None, None] / sig[None, :, None]
+    return Design(y, X, groups, np.concatenate([gwin[w_idx], np.arange(W)]),
+                  np.concatenate([np.array(channels)[ch_idx], np.full(W, "touchdown_z")]),
+                  np.concatenate([b_idx, np.full(W, -1)]), dict(sigma) | {"touchdown_z": geo["sigma"]},
+                  _lag1_factor(Z))
+
+
 def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
              candidates: Sequence[str] | None = None, seed: int = 0,
              terrain: Any = "dry_sand", sim: SimConfig | None = None,
              workers: int | None = None, n_boot: int = 200, phase_bins: int = 10,
-             max_effects: int = 2, refine_iterations: int = 2,
+             max_effects: int = 2, refine_iterations: int = 1,
              effect_files: Sequence[str | Path] = (), figures: bool = True) -> Diagnosis:
     """Calibrate the model on a data set, then find, rank and localise missing effects.
 
@@ -459,6 +537,7 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     """
     from ..robot.model import load_biped
     from ..terrain.effects import load_effect_file
+    from ..terrain.effects_library import SensorContext, apply_sensor_effects
     from .calibrate import calibrate
     from .dataformat import load_dataset
     from .prepare import stance_windows
@@ -480,47 +559,70 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
         raise GranularMpcError(f"{data_dir}: {len(windows)} complete stance phases; the "
                                "diagnosis needs at least 4")
     timing["prepare"] = _time.perf_counter() - t_start
-    # ---------------------------------------------------------------- 1. calibrate
-    t0 = _time.perf_counter()
-    cal = calibrate(windows, rm0.terrain, n_slices=biped.config.foot.slices, seed=seed)
-    cfg = model_terrain(cfg0, cal.values)
-    rm = build_replay_model(biped, cfg, sample_rate_hz=ds.meta.sample_rate_hz, sim=sim,
-                            terrain_effects=terrain_names)
-    timing["calibrate"] = _time.perf_counter() - t0
     J = list(ds.joint_names)
     channels = channel_names(J)
     edges = np.linspace(0.0, 100.0, phase_bins + 1)
+    W = len(windows)
+    trials = np.array([w.trial for w in windows])
+    gkeys = _group_keys(windows)
+    # ---------------------------------------------------------------- 1. calibrate
+    t0 = _time.perf_counter()
+    cal = calibrate(windows, rm0.terrain, n_slices=biped.config.foot.slices, seed=seed)
+    rm = build_replay_model(biped, cfg0, sample_rate_hz=ds.meta.sample_rate_hz, sim=sim,
+                            terrain_effects=terrain_names)
+    pool = ReplayPool(rm, windows, workers=workers)
+    theta = {"zeta": cal.values["zeta"], "phi_s": cal.values["phi_s"]}
+
+    def nuis_columns(th):
+        return [Column("calibration", "zeta", th["zeta"], 0.08 * th["zeta"], 0.05, 10.0),
+                Column("calibration", "phi_s", th["phi_s"], math.radians(3.0),
+                       math.radians(15.0), math.radians(70.0), "rad")]
+
+    # replay refinement of the calibration (Gauss–Newton on the systematic rows)
+    geo = _geometry_rows(windows, trials, {}, infos)
+    nuis_cols = nuis_columns(theta)
+    variants = {"base": Variant(theta=dict(theta), label="calibrated")}
+    for col in nuis_cols:
+        variants[col.key] = Variant(theta={**theta, col.param: col.neutral + col.step})
+    preds0 = pool.run(variants)
+    R0 = _residual_cube(windows, preds0["base"], channels, edges)
+    P0 = _pred_cube(windows, preds0["base"], channels, edges)
+    nuis_sens = {c.key: (_pred_cube(windows, preds0[c.key], channels, edges) - P0) / c.step
+                 for c in nuis_cols}
+    sigma = _sigma(R0, channels, gkeys)
+    d0 = build_design("group", windows, R0, nuis_sens, channels, sigma, geo)
+    reg0 = Regression(d0, {c.key: (c.lower - c.neutral, c.upper - c.neutral) for c in nuis_cols},
+                      [c.key for c in nuis_cols], seed=seed)
+    beta0, _ = reg0.fit([c.key for c in nuis_cols])
+    theta_cal = {c.param: float(np.clip(c.neutral + b, c.lower, c.upper))
+                 for c, b in zip(nuis_cols, beta0)}
+    moved = (abs(theta_cal["zeta"] - theta["zeta"]) > 0.005 * theta["zeta"]
+             or abs(theta_cal["phi_s"] - theta["phi_s"]) > math.radians(0.2))
+    timing["calibrate"] = _time.perf_counter() - t0
     # ---------------------------------------------------------------- 2. replays
     t0 = _time.perf_counter()
-    base = Variant(label="calibrated")
-    nuis_cols = [Column("calibration", "zeta", cal.values["zeta"], 0.1 * cal.values["zeta"],
-                        0.05, 10.0),
-                 Column("calibration", "phi_s", cal.values["phi_s"], math.radians(3.0),
-                        math.radians(15.0), math.radians(70.0), "rad")]
-    variants: dict[str, Variant] = {"base": base}
-    for col in nuis_cols:
-        variants[col.key] = base.with_theta(**{col.param: col.neutral + col.step})
+    base = Variant(theta=dict(theta_cal), label="calibrated")
     cand_cols: dict[str, list[Column]] = {}
+    variants = {"base": base} if moved else {}
     for n, info in infos.items():
         cand_cols[n] = candidate_columns(info)
         if info.kind == "sensor":
             continue
         for col in cand_cols[n]:
             variants[col.key] = _variant_for(info, {col.param: col.neutral + col.step}, base)
-    pool = ReplayPool(rm, windows, workers=workers)
-    preds = pool.run(variants)
+    preds = pool.run(variants) if variants else {}
+    if not moved:
+        preds["base"] = preds0["base"]
     timing["replays"] = _time.perf_counter() - t0
     t0 = _time.perf_counter()
     R = _residual_cube(windows, preds["base"], channels, edges)
-    P0 = _pred_cube(windows, preds["base"], channels, edges)
-    sens: dict[str, np.ndarray] = {}
-    for col in nuis_cols:
-        sens[col.key] = (_pred_cube(windows, preds[col.key], channels, edges) - P0) / col.step
+    Pb = _pred_cube(windows, preds["base"], channels, edges)
+    nuis_cols = nuis_columns(theta_cal)
+    sens: dict[str, np.ndarray] = {c.key: nuis_sens[f"calibration.{c.param}"] for c in nuis_cols}
     for n, cols in cand_cols.items():
         info = infos[n]
         for col in cols:
             if info.kind == "sensor":
-                from ..terrain.effects_library import SensorContext, apply_sensor_effects
                 p = info.neutral_params()
                 p[col.param] = col.neutral + col.step
                 shifted = []
@@ -528,94 +630,34 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
                     ctx = SensorContext(np.full(w.n, w.side, dtype=object), w.time, tuple(J))
                     shifted.append(apply_sensor_effects({c: pr[c] for c in channels},
                                                         [(info, p)], ctx))
-                sens[col.key] = (_pred_cube(windows, shifted, channels, edges) - P0) / col.step
+                sens[col.key] = (_pred_cube(windows, shifted, channels, edges) - Pb) / col.step
             else:
-                sens[col.key] = (_pred_cube(windows, preds[col.key], channels, edges) - P0) / col.step
+                sens[col.key] = (_pred_cube(windows, preds[col.key], channels, edges) - Pb) / col.step
     diverged = [w.index for w, p in zip(windows, preds["base"]) if p["diverged"]]
-    # ---------------------------------------------------------------- weights
-    trials = np.array([w.trial for w in windows])
-    sigma = {}
-    for c, ch in enumerate(channels):
-        var = []
-        for t in np.unique(trials):
-            v = R[trials == t, c, :]
-            if v.shape[0] >= 2:
-                var.append(np.nanvar(v, axis=0, ddof=1))
-        s = float(np.sqrt(np.nanmean(np.concatenate(var)))) if var else float(np.nanstd(R[:, c]))
-        sigma[ch] = s if s > 0 and math.isfinite(s) else 1.0
-    # lag-1 autocorrelation along the phase bins → effective sample size
-    Z = R / np.array([sigma[ch] for ch in channels])[None, :, None]
-    Zc = Z - np.nanmean(Z, axis=0, keepdims=True)
-    a, b2 = Zc[:, :, 1:], Zc[:, :, :-1]
-    m = np.isfinite(a) & np.isfinite(b2)
-    rho = float(np.sum(a[m] * b2[m]) / max(np.sum(Zc[np.isfinite(Zc)] ** 2), 1e-12))
-    rho = min(max(rho, 0.0), 0.95)
-    n_eff_factor = (1.0 - rho) / (1.0 + rho)
-    # geometry rows: touchdown heights, one free height per trial
-    td = np.array([w.touchdown_W for w in windows])
-    geo_y = np.zeros(len(windows))
-    geo_x = np.zeros(len(windows))
-    geo_yy = np.zeros(len(windows))
-    for t in np.unique(trials):
-        m = trials == t
-        geo_y[m] = td[m, 2] - td[m, 2].mean()
-        geo_x[m] = td[m, 0] - td[m, 0].mean()
-        geo_yy[m] = td[m, 1] - td[m, 1].mean()
-    A = np.column_stack([geo_x, geo_yy])
-    gres = geo_y - A @ np.linalg.lstsq(A, geo_y, rcond=None)[0] if len(windows) > 3 else geo_y
-    sigma_geo = float(1.4826 * np.median(np.abs(gres - np.median(gres)))) or 1e-3
-    sigma["touchdown_z"] = sigma_geo
-    geo_sens: dict[str, np.ndarray] = {}
-    for n, cols in cand_cols.items():
-        info = infos[n]
-        for col in cols:
-            if info.kind != "geometry":
-                geo_sens[col.key] = np.zeros(len(windows))
-                continue
-            p0 = info.neutral_params()
-            p1 = dict(p0)
-            p1[col.param] = col.neutral + col.step
-            th0, th1 = info.fn(p0), info.fn(p1)
-
-            def height(th):
-                return (th.get("surface_height", 0.0) + th.get("surface_slope_x", 0.0) * geo_x
-                        + th.get("surface_slope_y", 0.0) * geo_yy)
-            geo_sens[col.key] = (height(th1) - height(th0)) / col.step
-    # ---------------------------------------------------------------- design
-    Wn, C, B = R.shape
-    w_idx = np.repeat(np.arange(Wn), C * B)
-    ch_idx = np.tile(np.repeat(np.arange(C), B), Wn)
-    b_idx = np.tile(np.arange(B), Wn * C)
-    sig_vec = np.array([sigma[ch] for ch in channels])[ch_idx]
-    y = np.concatenate([R.ravel() / sig_vec, geo_y / sigma_geo])
-    X = {}
-    for k, S in sens.items():
-        g = geo_sens.get(k, np.zeros(len(windows)))
-        X[k] = np.concatenate([S.ravel() / sig_vec, g / sigma_geo])
-    groups = np.concatenate([trials[w_idx], trials])
-    n_trials = np.unique(trials).size
-    group_unit = "trial"
-    if n_trials < 3:                    # too few trials to hold any out: use stances
-        groups = np.concatenate([w_idx.astype(str), np.arange(Wn).astype(str)])
-        group_unit = "stance"
-    design = Design(y, X, groups, np.concatenate([w_idx, np.arange(Wn)]),
-                    np.concatenate([np.array(channels)[ch_idx], np.full(Wn, "touchdown_z")]),
-                    np.concatenate([b_idx, np.full(Wn, -1)]), sigma, n_eff_factor)
-    bounds = {}
-    for col in nuis_cols:
-        bounds[col.key] = (col.lower - col.neutral, col.upper - col.neutral)
+    sigma = _sigma(R, channels, gkeys)
+    geo = _geometry_rows(windows, trials, cand_cols, infos)
+    bounds = {c.key: (c.lower - c.neutral, c.upper - c.neutral) for c in nuis_cols}
     for cols in cand_cols.values():
         for col in cols:
             bounds[col.key] = (col.lower - col.neutral, col.upper - col.neutral)
-    reg = Regression(design, bounds, [c.key for c in nuis_cols], seed=seed)
     base_keys = [c.key for c in nuis_cols]
     cand_keys = {n: [c.key for c in cols] for n, cols in cand_cols.items()}
+    d_grp = build_design("group", windows, R, sens, channels, sigma, geo)
+    d_stn = build_design("stance", windows, R, sens, channels, sigma, geo)
+    n_trials = np.unique(trials).size
+    group_unit = "trial"
+    if n_trials < 3:                    # too few trials to hold any out: use stances
+        group_unit = "stance"
+        d_stn.groups = d_stn.window.astype(str)
+        d_grp = d_stn                   # no group averaging possible either
+    reg = Regression(d_grp, bounds, base_keys, seed=seed)
+    reg_st = Regression(d_stn, bounds, base_keys, seed=seed)
     timing["design"] = _time.perf_counter() - t0
     # ---------------------------------------------------------------- 3. rank
     t0 = _time.perf_counter()
-    ranking, selected = _rank(reg, base_keys, cand_keys, cand_cols, infos, n_boot=n_boot,
-                              seed=seed, max_effects=max_effects)
-    indist = _indistinguishable(reg, base_keys, cand_keys, ranking, windows, design, infos)
+    ranking, selected = _rank(reg, reg_st, base_keys, cand_keys, cand_cols, infos,
+                              n_boot=n_boot, seed=seed, max_effects=max_effects)
+    indist = _indistinguishable(reg, base_keys, cand_keys, ranking, windows, infos, reg_st)
     timing["rank"] = _time.perf_counter() - t0
     # ---------------------------------------------------------------- refine (replays)
     t0 = _time.perf_counter()
@@ -623,10 +665,11 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     refine_log = []
     final_preds = preds["base"]
     nuis_beta = reg.fit(base_keys)[0]
+    theta_final = dict(theta_cal)
     if selected:
-        fitted, nuis_theta, final_preds, refine_log = _refine(
+        fitted, theta_final, final_preds, refine_log = _refine(
             pool, base, windows, channels, edges, sigma, selected, cand_cols, infos, ranking,
-            nuis_cols, reg, design, iterations=refine_iterations)
+            nuis_cols, sens, geo, iterations=refine_iterations)
         for e in ranking:
             if e["effect"] in fitted:
                 e["refined_params"] = fitted[e["effect"]]
@@ -656,9 +699,20 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
         status = "no_significant_missing_effect"
         text = "no significant missing effect: no candidate passes the held-out, AICc and " \
                "bootstrap tests, and no channel × phase cell shows a systematic residual"
-    # held-out reduction per channel of the added effects (linearised, trial-grouped)
-    channel_red = _channel_heldout(reg, base_keys, [k for s in selected for k in cand_keys[s]],
-                                   design, channels) if selected else {}
+    add_keys = [k for s in selected for k in cand_keys[s]]
+    channel_red = (_channel_heldout(reg_st, base_keys, add_keys, d_stn, channels)
+                   if selected else {})
+    channel_red_sys = (_channel_heldout(reg, base_keys, add_keys, d_grp, channels)
+                       if selected else {})
+    cal_json = cal.to_json()
+    cal_json["equation_error_values"] = dict(cal.values)
+    cal_json["values"] = dict(theta_final)
+    cal_json["replay_refined"] = {"values": theta_cal, "method": "one Gauss–Newton step on "
+                                  "the stance-averaged replay residuals (finite-difference "
+                                  "sensitivities of ζ and φ_s)"}
+    cal_json["values_readable"] = {("phi_s_deg" if k == "phi_s" else k):
+                                   (math.degrees(v) if k == "phi_s" else v)
+                                   for k, v in theta_final.items()}
     result = {
         "data": str(data_dir),
         "verdict": {"status": status, "text": text, "added": list(selected),
@@ -666,24 +720,25 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
                                    "max_delta_aicc": MAX_DELTA_AICC,
                                    "min_inclusion_probability": MIN_INCLUSION,
                                    "cell_t": T_CELL}},
-        "calibration": {**cal.to_json(),
-                        "replay_adjustment": {c.param: float(c.neutral + beta)
-                                              for c, beta in zip(nuis_cols, nuis_beta)}},
+        "calibration": cal_json,
         "ranking": ranking,
         "indistinguishable": indist,
         "fitted_effects": fitted,
         "heldout_reduction_by_channel": channel_red,
+        "heldout_reduction_by_channel_systematic": channel_red_sys,
         "localization": {"where": _where_summary(loc_before, 6), "before": loc_before,
                          "after": loc_after, "unexplained_where": _where_summary(loc_after, 6),
                          "n_significant_cells_before": loc_before["n_significant_cells"],
                          "n_significant_cells_after": unexplained},
-        "design": {"n_stances": len(windows), "n_trials": int(n_trials), "channels": channels,
-                   "phase_bins": phase_bins, "rows": int(reg.y.size),
-                   "n_eff_factor": n_eff_factor, "sigma": sigma, "cv_groups": group_unit,
+        "design": {"n_stances": W, "n_trials": int(n_trials), "channels": channels,
+                   "phase_bins": phase_bins, "rows_systematic": int(reg.y.size),
+                   "rows_stance": int(reg_st.y.size),
+                   "n_eff_factor": {"systematic": d_grp.n_eff_factor, "stance": d_stn.n_eff_factor},
+                   "sigma": d_grp.sigma, "cv_groups": group_unit,
                    "cv_folds": len(reg.splits), "diverged_stances": diverged,
                    "candidates": {n: infos[n].kind for n in infos},
                    "replays": pool.n_replays, "refine": refine_log},
-        "recommended": _recommend(cal, fitted),
+        "recommended": _recommend(theta_final, fitted),
     }
     timing["total"] = _time.perf_counter() - t_start
     result["timing_s"] = timing
@@ -705,18 +760,54 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     return Diagnosis(result, out, tuple(figs))
 
 
+def _geometry_rows(windows, trials, cand_cols, infos) -> dict:
+    """Touchdown heights (one free surface height per trial) and the geometry
+    candidates' predicted change of them."""
+    W = len(windows)
+    td = np.array([w.touchdown_W for w in windows])
+    gy, gx, gyy = np.zeros(W), np.zeros(W), np.zeros(W)
+    for t in np.unique(trials):
+        m = trials == t
+        gy[m] = td[m, 2] - td[m, 2].mean()
+        gx[m] = td[m, 0] - td[m, 0].mean()
+        gyy[m] = td[m, 1] - td[m, 1].mean()
+    A = np.column_stack([gx, gyy])
+    res = gy - A @ np.linalg.lstsq(A, gy, rcond=None)[0] if W > 3 else gy
+    sig = float(1.4826 * np.median(np.abs(res - np.median(res)))) or 1e-3
+    sens = {}
+    for n, cols in cand_cols.items():
+        info = infos[n]
+        for col in cols:
+            if info.kind != "geometry":
+                continue
+            p0 = info.neutral_params()
+            p1 = dict(p0)
+            p1[col.param] = col.neutral + col.step
+            th0, th1 = info.fn(p0), info.fn(p1)
+
+            def height(th):
+                return (th.get("surface_height", 0.0) + th.get("surface_slope_x", 0.0) * gx
+                        + th.get("surface_slope_y", 0.0) * gyy)
+            sens[col.key] = (height(th1) - height(th0)) / col.step
+    return {"y": gy, "sigma": max(sig, 1e-4), "sens": sens}
+
+
 # ======================================================================================
 # Ranking helpers
 # ======================================================================================
 
 
-def _rank(reg: Regression, base_keys, cand_keys, cand_cols, infos, *, n_boot, seed,
-          max_effects):
+def _rank(reg: Regression, reg_st: Regression, base_keys, cand_keys, cand_cols, infos, *,
+          n_boot, seed, max_effects):
+    """Marginal statistics of every candidate (against the calibrated model) and the
+    forward selection of the effects to add."""
     sse0, folds0 = reg.cv(base_keys)
+    sse0_st, _ = reg_st.cv(base_keys)
     a0 = reg.aicc(base_keys)
     rows = []
     for n, keys in cand_keys.items():
         sse, folds = reg.cv(base_keys + keys)
+        sse_st, _ = reg_st.cv(base_keys + keys)
         beta, _ = reg.fit(base_keys + keys)
         cov = reg.covariance(base_keys + keys, beta)
         params = {}
@@ -732,6 +823,7 @@ def _rank(reg: Regression, base_keys, cand_keys, cand_cols, infos, *, n_boot, se
         improved = sum(1 for f0, f1 in zip(folds0, folds) if f1 < f0)
         rows.append({"effect": n, "kind": infos[n].kind,
                      "heldout_error_reduction": 1.0 - sse / sse0 if sse0 > 0 else 0.0,
+                     "heldout_error_reduction_stance": 1.0 - sse_st / sse0_st if sse0_st > 0 else 0.0,
                      "delta_aicc": reg.aicc(base_keys + keys) - a0,
                      "folds_improved": f"{improved}/{len(folds)}",
                      "params": params, "main": infos[n].main,
@@ -741,7 +833,7 @@ def _rank(reg: Regression, base_keys, cand_keys, cand_cols, infos, *, n_boot, se
     gs = np.unique(reg.groups)
     members = {g: np.flatnonzero(reg.groups == g) for g in gs}
     counts = {n: 0 for n in cand_keys}
-    boot_params = {n: [] for n in cand_keys}
+    boot_params: dict[str, list] = {n: [] for n in cand_keys}
     B = int(n_boot) if gs.size >= 2 else 0
     for _ in range(B):
         pick = rng.choice(gs, gs.size, replace=True)
@@ -762,8 +854,9 @@ def _rank(reg: Regression, base_keys, cand_keys, cand_cols, infos, *, n_boot, se
                 r["params"][col.param]["boot_ci_lo"] = float(np.percentile(vals, 2.5))
                 r["params"][col.param]["boot_ci_hi"] = float(np.percentile(vals, 97.5))
         r["significant"] = bool(r["heldout_error_reduction"] >= MIN_HELDOUT_REDUCTION
+                                and r["heldout_error_reduction_stance"] >= MIN_STANCE_REDUCTION
                                 and r["delta_aicc"] <= MAX_DELTA_AICC
-                                and (r["inclusion_probability"] or 0.0) >= MIN_INCLUSION)
+                                and (r["inclusion_probability"] if B else 1.0) >= MIN_INCLUSION)
     rows.sort(key=lambda r: -r["heldout_error_reduction"])
     for i, r in enumerate(rows):
         r["rank"] = i + 1
@@ -774,14 +867,17 @@ def _rank(reg: Regression, base_keys, cand_keys, cand_cols, infos, *, n_boot, se
     while pool and len(selected) < max_effects:
         best = pool[0] if not selected else None
         if selected:
-            sse_now, folds_now = reg.cv(keys_now)
+            sse_now, _ = reg.cv(keys_now)
+            sse_now_st, _ = reg_st.cv(keys_now)
             a_now = reg.aicc(keys_now)
             best_red = MIN_HELDOUT_REDUCTION
             for n in pool:
                 sse, _ = reg.cv(keys_now + cand_keys[n])
+                sse_st, _ = reg_st.cv(keys_now + cand_keys[n])
                 red = 1.0 - sse / sse_now
+                red_st = 1.0 - sse_st / sse_now_st
                 da = reg.aicc(keys_now + cand_keys[n]) - a_now
-                if red >= best_red and da <= MAX_DELTA_AICC:
+                if red >= best_red and red_st >= MIN_STANCE_REDUCTION and da <= MAX_DELTA_AICC:
                     best, best_red = n, red
             if best is None:
                 break
@@ -796,7 +892,8 @@ def _rank(reg: Regression, base_keys, cand_keys, cand_cols, infos, *, n_boot, se
     return rows, selected
 
 
-def _indistinguishable(reg: Regression, base_keys, cand_keys, ranking, windows, design, infos):
+def _indistinguishable(reg: Regression, base_keys, cand_keys, ranking, windows, infos,
+                       reg_st: Regression):
     """Pairs of leading candidates whose fitted contributions are nearly collinear."""
     if not ranking or ranking[0]["heldout_error_reduction"] <= 0:
         return []
@@ -824,41 +921,36 @@ def _indistinguishable(reg: Regression, base_keys, cand_keys, ranking, windows, 
             out.append({"effects": [top["effect"], r["effect"]], "correlation": corr,
                         "heldout_error_reduction": [top["heldout_error_reduction"],
                                                     r["heldout_error_reduction"]],
-                        "experiment": _separating_experiment(top["effect"], r["effect"], reg,
-                                                             cand_keys, base_keys, design,
-                                                             windows, infos)})
+                        "experiment": _separating_experiment(top["effect"], r["effect"], reg_st,
+                                                             cand_keys, windows, infos)})
     return out
 
 
-def _separating_experiment(a: str, b: str, reg, cand_keys, base_keys, design, windows,
+def _separating_experiment(a: str, b: str, reg: Regression, cand_keys, windows,
                            infos) -> str:
-    """The measured variable along which the two candidates' columns differ most."""
-    feats = list(FEATURE_EXPERIMENTS)
+    """The measured variable along which the two candidates' columns differ most
+    (stance-level rows: rank correlation of |column| with each binned feature)."""
     ok = reg.ok
-    wid = design.window[ok]
-    pb = design.phase_bin[ok]
+    wid = reg.d.window[ok]
+    pb = reg.d.phase_bin[ok]
     Xa, _, _ = reg.matrix(cand_keys[a])
     Xb, _, _ = reg.matrix(cand_keys[b])
-    va, vb = Xa.sum(axis=1), Xb.sum(axis=1)
+    va, vb = np.abs(Xa).sum(axis=1), np.abs(Xb).sum(axis=1)
+    edges = np.linspace(0, 100, int(max(pb.max(), 0)) + 2)
     best, gap = None, 0.0
-    for f in feats:
+    for f in FEATURE_EXPERIMENTS:
         x = np.full(va.size, np.nan)
         for i, w in enumerate(windows):
-            m = wid == i
+            m = (wid == i) & (pb >= 0)
             if not m.any():
                 continue
             if f == "commanded_speed":
                 x[m] = w.speed
-                continue
-            if f not in w.features:
-                continue
-            edges = np.linspace(0, 100, int(pb[m].max()) + 2) if (pb[m] >= 0).any() else None
-            if edges is None:
-                continue
-            vals = _bin_means(w, w.features, [f], np.linspace(0, 100, 11))[0]
-            x[m] = vals[np.clip(pb[m], 0, vals.size - 1)]
-        ra, _ = _spearman(x, np.abs(va))
-        rb, _ = _spearman(x, np.abs(vb))
+            elif f in w.features:
+                vals = _bin_means(w, w.features, [f], edges)[0]
+                x[m] = vals[np.clip(pb[m], 0, vals.size - 1)]
+        ra, _ = _spearman(x, va)
+        rb, _ = _spearman(x, vb)
         if ra == ra and rb == rb and abs(ra - rb) > gap:
             best, gap = f, abs(ra - rb)
     da = ", ".join(infos[a].depends_on) or "its own signature"
@@ -911,8 +1003,10 @@ def _channel_heldout(reg: Regression, base_keys, add_keys, design, channels) -> 
 
 
 def _refine(pool, base: Variant, windows, channels, edges, sigma, selected, cand_cols, infos,
-            ranking, nuis_cols, reg, design, *, iterations: int):
-    """Gauss–Newton on the replays for the selected effects' magnitude columns."""
+            ranking, nuis_cols, sens, geo, *, iterations: int):
+    """Gauss–Newton on the replays for the selected effects' magnitude columns (and the
+    calibration), on the stance-averaged rows: the sensitivities are recomputed at the
+    current values (a secant of 25 % of the current magnitude)."""
     cols = [c for s in selected for c in cand_cols[s]]
     values = {}
     for r in ranking:
@@ -921,10 +1015,6 @@ def _refine(pool, base: Variant, windows, channels, edges, sigma, selected, cand
                 values[(r["effect"], p)] = float(v["value"])
     theta_nuis = {c.param: c.neutral for c in nuis_cols}
     log = []
-    ch_idx = np.tile(np.repeat(np.arange(len(channels)), len(edges) - 1), len(windows))
-    sig_vec = np.array([sigma[ch] for ch in channels])[ch_idx]
-    geo_rows = design.channel == "touchdown_z"
-    preds = None
 
     def variant_with(vals, nuis):
         specs = []
@@ -934,8 +1024,18 @@ def _refine(pool, base: Variant, windows, channels, edges, sigma, selected, cand
             for c in cand_cols[s]:
                 p[c.param] = vals[(s, c.param)]
             specs.append((info, p))
-        return effect_variant(specs, base.with_theta(**nuis))
+        return effect_variant(specs, Variant(theta={**base.theta, **nuis}))
 
+    def shifted_sensor(preds_cur, info, p):
+        from ..terrain.effects_library import SensorContext, apply_sensor_effects
+        out = []
+        for w, pr in zip(windows, preds_cur):
+            ctx = SensorContext(np.full(w.n, w.side, dtype=object), w.time,
+                                tuple(c[2:] for c in channels if c.startswith("q_")))
+            out.append(apply_sensor_effects({c: pr[c] for c in channels}, [(info, p)], ctx))
+        return out
+
+    final = None
     for it in range(max(1, iterations)):
         variants = {"cur": variant_with(values, theta_nuis)}
         steps = {}
@@ -946,59 +1046,57 @@ def _refine(pool, base: Variant, windows, channels, edges, sigma, selected, cand
             if not (c.lower <= cur + step <= c.upper):
                 step = -step
             v[(c.candidate, c.param)] = cur + step
-            steps[c.key] = step
-            variants[c.key] = variant_with(v, theta_nuis)
-        for c in nuis_cols:
-            steps[c.key] = c.step
-            variants[c.key] = variant_with(values, {**theta_nuis,
-                                                    c.param: theta_nuis[c.param] + c.step})
+            steps[c.key] = (step, v)
+            if infos[c.candidate].kind != "sensor":
+                variants[c.key] = variant_with(v, theta_nuis)
         out = pool.run(variants)
-        preds = out["cur"]
-        Rc = _residual_cube(windows, preds, channels, edges)
-        P0 = _pred_cube(windows, preds, channels, edges)
-        y = Rc.ravel() / sig_vec
-        Xs = {k: (_pred_cube(windows, out[k], channels, edges) - P0).ravel() / steps[k] / sig_vec
-              for k in steps}
-        # geometry rows: linear in the slope, residual from the current values
-        yg = reg.d.y[geo_rows].copy()
-        keys = list(steps)
-        Xg = {k: reg.d.X[k][geo_rows] if k in reg.d.X else np.zeros(int(geo_rows.sum()))
-              for k in keys}
+        cur_preds = out["cur"]
+        Rc = _residual_cube(windows, cur_preds, channels, edges)
+        Pc = _pred_cube(windows, cur_preds, channels, edges)
+        S = {}
         for c in cols:
-            yg = yg - Xg[c.key] * (values[(c.candidate, c.param)] - c.neutral)
-        Y = np.concatenate([y, yg])
-        A = np.column_stack([np.concatenate([Xs[k], Xg[k]]) for k in keys])
-        ok = np.isfinite(Y) & np.isfinite(A).all(axis=1)
+            step, v = steps[c.key]
+            info = infos[c.candidate]
+            if info.kind == "sensor":
+                p = info.neutral_params()
+                for cc in cand_cols[c.candidate]:
+                    p[cc.param] = v[(c.candidate, cc.param)]
+                pr = shifted_sensor(cur_preds, info, p)
+            else:
+                pr = out[c.key]
+            S[c.key] = (_pred_cube(windows, pr, channels, edges) - Pc) / step
+        for c in nuis_cols:
+            S[c.key] = sens[c.key]
+        # geometry rows at the current values (linear in the geometry parameters)
+        gy = geo["y"].copy()
+        for c in cols:
+            if c.key in geo["sens"]:
+                gy = gy - geo["sens"][c.key] * (values[(c.candidate, c.param)] - c.neutral)
+        d = build_design("group", windows, Rc, S, channels, sigma,
+                         {"y": gy, "sigma": geo["sigma"], "sens": geo["sens"]})
+        keys = [c.key for c in nuis_cols] + [c.key for c in cols]
+        A = np.column_stack([d.X[k] for k in keys])
+        ok = np.isfinite(d.y) & np.isfinite(A).all(axis=1)
         lb, ub = [], []
-        for k in keys:
-            c = next((c for c in cols if c.key == k), None)
-            if c is not None:
-                cur = values[(c.candidate, c.param)]
-                lb.append(c.lower - cur)
-                ub.append(c.upper - cur)
-            else:
-                cn = next(c for c in nuis_cols if c.key == k)
-                lb.append(cn.lower - theta_nuis[cn.param])
-                ub.append(cn.upper - theta_nuis[cn.param])
-        delta = _fit(A[ok], Y[ok], np.array(lb), np.array(ub))
-        rss = float(np.sum((Y[ok] - A[ok] @ delta) ** 2))
-        log.append({"iteration": it + 1, "weighted_rss_before": float(np.sum(Y[ok] ** 2)),
-                    "weighted_rss_linear_after": rss,
+        for c in nuis_cols:
+            lb.append(c.lower - theta_nuis[c.param])
+            ub.append(c.upper - theta_nuis[c.param])
+        for c in cols:
+            cur = values[(c.candidate, c.param)]
+            lb.append(c.lower - cur)
+            ub.append(c.upper - cur)
+        delta = _fit(A[ok], d.y[ok], np.array(lb), np.array(ub))
+        log.append({"iteration": it + 1, "weighted_rss_before": float(np.sum(d.y[ok] ** 2)),
+                    "weighted_rss_linear_after": float(np.sum((d.y[ok] - A[ok] @ delta) ** 2)),
                     "values": {f"{a}.{b}": v for (a, b), v in values.items()}})
-        for k, dlt in zip(keys, delta):
-            c = next((c for c in cols if c.key == k), None)
-            if c is not None:
-                values[(c.candidate, c.param)] = float(np.clip(
-                    values[(c.candidate, c.param)] + dlt, c.lower, c.upper))
-            else:
-                cn = next(c for c in nuis_cols if c.key == k)
-                theta_nuis[cn.param] = float(np.clip(theta_nuis[cn.param] + dlt, cn.lower,
-                                                     cn.upper))
+        for c, dlt in zip(nuis_cols, delta[:len(nuis_cols)]):
+            theta_nuis[c.param] = float(np.clip(theta_nuis[c.param] + dlt, c.lower, c.upper))
+        for c, dlt in zip(cols, delta[len(nuis_cols):]):
+            values[(c.candidate, c.param)] = float(np.clip(
+                values[(c.candidate, c.param)] + dlt, c.lower, c.upper))
     final = pool.run({"final": variant_with(values, theta_nuis)})["final"]
-    Rf = _residual_cube(windows, final, channels, edges).ravel() / sig_vec
-    log.append({"iteration": "final", "weighted_rss": float(np.nansum(Rf ** 2)),
-                "values": {f"{a}.{b}": v for (a, b), v in values.items()},
-                "calibration": theta_nuis})
+    log.append({"iteration": "final", "values": {f"{a}.{b}": v for (a, b), v in values.items()},
+                "calibration": dict(theta_nuis)})
     fitted: dict[str, dict[str, float]] = {}
     for s in selected:
         p = infos[s].neutral_params()
@@ -1008,9 +1106,9 @@ def _refine(pool, base: Variant, windows, channels, edges, sigma, selected, cand
     return fitted, theta_nuis, final, log
 
 
-def _recommend(cal, fitted: Mapping[str, Mapping[str, float]]) -> dict:
+def _recommend(theta: Mapping[str, float], fitted: Mapping[str, Mapping[str, float]]) -> dict:
     eff = [f"{n}:" + ",".join(f"{k}={v:.6g}" for k, v in p.items()) for n, p in fitted.items()]
-    params = {k: v for k, v in cal.values.items()}
+    params = dict(theta)
     return {"effects": eff, "calibrated_params": params,
             "validate_command": ("granular-mpc validate DATA --params DIAG_DIR/diagnosis.json "
                                  + " ".join(f"--effect {n}" for n in fitted)).strip()}

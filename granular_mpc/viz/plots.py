@@ -150,13 +150,16 @@ def _xyz_bands(log, out_path, segments, n_phase, prefix, scale, unit, title, sym
     res = resample_stances(log, channels, segments=segs, n_phase=n_phase)
     for c in channels:
         res[c] = res[c] * scale
+    # left and right stances are mirror images laterally: averaging raw y would cancel
+    # them, so y is taken positive outward (left foot as is, right foot mirrored)
+    res.loc[res["side"] == "right", channels[1]] *= -1.0
     bands = phase_bands(res, channels)
     bands["unit"] = unit
     fig, axes = _figure(1, 3, 11.0, 3.6)
     for j, (ch, sym) in enumerate(zip(channels, symbols)):
         ax = axes[0, j]
         _band_panel(ax, bands, ch, color=_PALETTE[j], label=_n_note(segs))
-        ax.set_title(sym)
+        ax.set_title(sym + (" (+ outward)" if j == 1 else ""))
         ax.set_xlabel(_PHASE_LABEL)
         ax.set_ylabel(f"{sym} [{unit}]")
     axes[0, 0].legend(loc="best", fontsize=8)
@@ -168,7 +171,9 @@ def plot_grf_bands(log: pd.DataFrame, out_path: str | Path | None = None, *,
                    segments: pd.DataFrame | None = None, n_phase: int = 101) -> PlotOutput:
     """Ground reaction force on the stance foot (paper Fig. 4b), world frame [N].
 
-    Uses the v1 columns ``grf_x, grf_y, grf_z`` (stance foot). ``data``: bands in N.
+    Uses the v1 columns ``grf_x, grf_y, grf_z`` (stance foot). The lateral component is
+    shown positive outward (right-foot stances mirrored), so left and right stances add up
+    instead of cancelling. ``data``: bands in N.
     """
     return _xyz_bands(log, out_path, segments, n_phase, "grf", 1.0, "N",
                       "Ground reaction force on the stance foot (world frame)",
@@ -180,7 +185,8 @@ def plot_intrusion_bands(log: pd.DataFrame, out_path: str | Path | None = None, 
     """Stance-foot intrusion x_s, y_s, z_s (paper Fig. 4c), plotted in mm.
 
     Uses the v1 columns ``intrusion_x/y/z`` (contact point relative to touchdown, z_s
-    positive deeper). ``data``: bands in **mm** (log values × 1000).
+    positive deeper); y_s positive outward (right-foot stances mirrored). ``data``: bands
+    in **mm** (log values × 1000).
     """
     return _xyz_bands(log, out_path, segments, n_phase, "intrusion", 1000.0, "mm",
                       "Stance-foot intrusion from touchdown (z_s positive deeper)",
