@@ -31,6 +31,8 @@ import numpy as np
 
 from ..config import MPCConfig
 from ..terrain.base import TerrainModel
+from ..terrain.closed_form import yield_polygon
+from ..terrain.rft import Coefficients
 
 
 @dataclass(frozen=True)
@@ -113,17 +115,9 @@ def ground_model(terrain: TerrainModel, mpc: MPCConfig) -> GroundModel:
         poly = ForcePolytope(G, np.zeros(4), mpc.max_normal_force)
         return GroundModel("rigid", poly, terrain.surface_height, np.zeros(2), np.array([0.0, 1.0]))
     z_max = min(mpc.max_sinkage, 0.95 * terrain.config.layer_depth)
-    cap = terrain.vertical_capacity(z_max)
-    # yield curve at z_max: flow directions from straight down to 45° (still penetrating)
-    pts = []
-    for g_deg in np.linspace(45.0, 89.0, 12):
-        g = math.radians(g_deg)
-        r = terrain.foot_forces(z_max, 0.0, math.cos(g), -math.sin(g))
-        pts.append((abs(float(r.f_h)), float(r.f_z)))
-    pts = np.array(pts)
-    mu_h = float(pts[0, 0] / pts[0, 1])      # shear/normal ratio of the 45° flow
-    # κ_h: the chord from the vertical yield point to the 45° point stays inside the curve
-    kappa_h = float(np.min(pts[:, 0] / np.maximum(cap - pts[:, 1], 1e-9)))
+    c = terrain.config
+    mu_h, kappa_h, cap = yield_polygon(terrain.shape, math.radians(c.phi_s_deg), z_max,
+                                       coeffs=Coefficients.from_config(c.rft), zeta=c.zeta)
     _, lat = terrain.horizontal_capacity(z_max)
     mu_l = float(lat / cap)
     G = np.array([[1, 0, -mu_h], [-1, 0, -mu_h], [1, 0, kappa_h], [-1, 0, kappa_h],

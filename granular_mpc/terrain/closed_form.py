@@ -308,6 +308,30 @@ def lateral_capacity(o, shape: FootShape, forces: SagittalForces, v_l, v_z, y_sl
                                + pile * o.fmax(alpha_y, 0.0) * forces.side_moment * share)
 
 
+def yield_polygon(shape: FootShape, phi: float, depth: float, *,
+                  coeffs: Coefficients = GENERIC, zeta: float = 1.0) -> tuple[float, float, float]:
+    """Inner polygon of the sagittal RFT yield curve of a level foot at ``depth`` [m].
+
+    The curve is the force ``(F_h(γ), F_z(γ))`` the medium exerts while the foot flows in
+    direction γ; forces strictly inside it are held without flow. Returns ``(μ_h, κ_h,
+    F_cap)`` of the polygon ``|F_h| ≤ min(μ_h F_z, κ_h (F_cap − F_z))``, ``0 ≤ F_z ≤ F_cap``:
+    μ_h is the shear/normal ratio of the 45° flow (still penetrating), κ_h the steepest
+    chord from the vertical yield point that stays inside the curve for flows at 45°–89°.
+    Normalised by F_cap the curve barely changes with depth, so the ratios serve any depth.
+    """
+    cap = sagittal_forces(FLOAT, shape, phi, depth, 0.0, 0.0, -1.0, coeffs=coeffs,
+                          zeta=zeta).f_z
+    pts = []
+    for g_deg in [45.0 + 44.0 * k / 11.0 for k in range(12)]:
+        g = math.radians(g_deg)
+        r = sagittal_forces(FLOAT, shape, phi, depth, 0.0, math.cos(g), -math.sin(g),
+                            coeffs=coeffs, zeta=zeta)
+        pts.append((abs(float(r.f_h)), float(r.f_z)))
+    mu_h = pts[0][0] / pts[0][1]
+    kappa_h = min(fh / max(cap - fz, 1e-9) for fh, fz in pts)
+    return float(mu_h), float(kappa_h), float(cap)
+
+
 def wedge_area(shape: FootShape, phi: float, psi_c: float = 0.0) -> tuple[float, float]:
     """Area of the solidified wedge cross-section [m²] and its height (apex to support) [m]."""
     g = wedge_geometry(FLOAT, shape, phi, 0.0, psi_c)
@@ -319,4 +343,4 @@ def wedge_area(shape: FootShape, phi: float, psi_c: float = 0.0) -> tuple[float,
 
 
 __all__ = ["FLOAT", "casadi_ops", "FootShape", "SagittalForces", "sagittal_forces",
-           "lateral_capacity", "wedge_geometry", "wedge_area"]
+           "lateral_capacity", "wedge_geometry", "wedge_area", "yield_polygon"]

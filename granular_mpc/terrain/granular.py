@@ -6,7 +6,10 @@ force of the current direction of motion:
 * direction of motion ``u = v_c + e/τ`` (velocity plus elastic displacement over a short
   time constant, so a resting foot still has a direction: the way it is pressed);
 * vertical and heading components within ``[min(0, F_RFT), max(0, F_RFT)]`` of the closed
-  form of :mod:`.closed_form` (sagittal slice, mirrored to the direction of motion);
+  form of :mod:`.closed_form` (sagittal slice, mirrored to the direction of motion); the
+  heading bound also covers the static interior of the yield curve at the present depth
+  (``|F_h| ≤ min(μ_s F_z, κ_s(F_cap − F_z))``, :func:`.closed_form.yield_polygon`), so a
+  resting loaded foot holds shear without creeping;
 * lateral component within ``ζ[α_sh S₁ + (1 − e^{−|y_s|/λ}) α_y Q]`` (shear + bulldozing);
 * extraction: the closed form's sole elements do not lead when the foot rises, so the
   only pull-down is RFT's own α_z < 0 on buried rear / top elements — no invented suction;
@@ -19,7 +22,7 @@ from __future__ import annotations
 
 import math
 
-from .closed_form import FootShape, lateral_capacity, sagittal_forces, wedge_area
+from .closed_form import FootShape, lateral_capacity, sagittal_forces, wedge_area, yield_polygon
 from .contact import LawOutput, clip, elastic_trial, from_basis, to_basis
 from .rft import Coefficients
 
@@ -41,6 +44,9 @@ def make_granular_law(cfg, slice_shape: FootShape, full_width: float):
     density = cfg.density  # bulk density: grains × packing fraction
     area_w, height_w = wedge_area(slice_shape, math.radians(cfg.phi_s_deg))
     floor_k = 2.0 * cfg.contact_stiffness
+    # the static part of the yield curve (shape ratios at a walking depth; see yield_polygon)
+    mu_s, kappa_s, _ = yield_polygon(slice_shape, math.radians(cfg.phi_s_deg), 0.02,
+                                     coeffs=coeffs, zeta=cfg.zeta)
 
     def law(o, g, e_prev, c0, th, dt) -> LawOutput:
         K, D = th["contact_stiffness"], th["contact_damping"]
@@ -59,10 +65,18 @@ def make_granular_law(cfg, slice_shape: FootShape, full_width: float):
                                  shear_alpha=th["sole_shear_alpha"], full_width=full_width,
                                  coeffs=coeffs)
         t_h, t_l, t_z = to_basis(f_tr, h, l)
-        f_h = clip(o, t_h, o.fmin(0.0, sag.f_h), o.fmax(0.0, sag.f_h))
         # pure-penetration capacity at this depth (also reported as f_cap_z)
         cap_z = sagittal_forces(o, slice_shape, phi, g.depth, g.psi_c, 0.0, -1.0,
                                 coeffs=coeffs, zeta=zeta).f_z
+        # Heading bounds: the flow force of the current direction, widened by the static
+        # part of the yield curve at this depth — a force strictly inside the curve is held
+        # without flow, so a resting loaded foot resists shear up to
+        # min(μ_s F_z, κ_s (F_cap − F_z)); at the vertical yield point this is zero and only
+        # the flow force remains (slip-sink coupling of RFT).
+        t_zp = o.fmax(t_z, 0.0)
+        static_h = o.fmax(o.fmin(mu_s * t_zp, kappa_s * (o.fmax(cap_z, 0.0) - t_zp)), 0.0)
+        f_h = clip(o, t_h, o.fmin(o.fmin(0.0, sag.f_h), -static_h),
+                   o.fmax(o.fmax(0.0, sag.f_h), static_h))
         # Vertical bounds. Sinking (u_z < 0): [min(0, F_z(u)), max(0, F_z(u))], the flow
         # force of the current direction. Rising (u_z > 0) a compressed spring unloads
         # elastically: the upper bound stays at the penetration capacity instead of
