@@ -1130,8 +1130,6 @@ def run_sweep(tasks: Sequence[Any], out_dir: str | Path, *, workers: int | None 
         ConfigError: unknown backend, Ray not installed.
         OutputError: the folder cannot be written.
     """
-    import pandas as pd
-
     from .exceptions import ConfigError
 
     if backend not in ("local", "ray"):

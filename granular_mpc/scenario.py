@@ -27,7 +27,7 @@ import copy
 import itertools
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any, Iterable, Mapping
 
 from .config import (ScenarioConfig, SweepConfig, apply_override, load_yaml, parse_override, robot_dict,
                      terrain_dict, to_plain, validate)

@@ -57,7 +57,7 @@ def test_run_writes_the_run_folder(tmp_path):
     assert "Traceback" not in proc.stderr
     summary = json.loads((out / "summary.json").read_text())
     assert summary["complete"] is True and summary["sim_time_s"] > 0
-    assert f"outputs:" in proc.stdout and "CoT:" in proc.stdout
+    assert "outputs:" in proc.stdout and "CoT:" in proc.stdout
     assert len(list((out / "plots").glob("*.png"))) >= 4
     assert (out / "animation.html").stat().st_size > 100_000
     assert load_scenario(out / "config.resolved.yaml").sim.duration == 0.6

@@ -3,7 +3,6 @@ closed loops on both terrains (the 20 s matrix lives in bench/controller_matrix.
 
 import math
 
-import numpy as np
 import pinocchio as pin
 import pytest
 

@@ -145,7 +145,7 @@ def test_granular_polytope_lies_inside_the_rft_yield_curve(sand):
         r = sand.foot_forces(z, 0.0, math.cos(g), -math.sin(g))
         curve.append((abs(r.f_h), r.f_z))
     curve = np.array(curve)
-    G, h, fmax = gm.polytope.G, gm.polytope.h, gm.polytope.f_max
+    G, fmax = gm.polytope.G, gm.polytope.f_max
     # sagittal vertices of {|F_h| ≤ μ F_z, |F_h| ≤ κ (F_cap − F_z), F_z ≤ F_cap}
     mu, kappa = -G[0, 2], G[2, 2]
     fz_corner = kappa * fmax / (mu + kappa)

@@ -6,7 +6,6 @@ checked for agreement between backends, not for walking.
 from __future__ import annotations
 
 import importlib.util
-import math
 
 import numpy as np
 import pandas as pd

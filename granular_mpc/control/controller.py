@@ -240,7 +240,6 @@ class WalkingController:
         v_step[0] += fh.k_speed_integral * d.speed_integral
         y_line = d.origin[1] + p_ref[1]
         yaw_ref = d.origin[2]
-        mg = b.weight
         # footholds of swinging feet (sole points) for their next touchdown, from the DCM
         omega = self.omega
         dcm = com[:2] + vcom[:2] / omega

@@ -204,7 +204,7 @@ class CentroidalMPC:
         poly = self.ground.polytope
         cone = poly.G[poly.cone_rows] @ Rz.T
         capr = poly.G[poly.capacity_rows] @ Rz.T
-        nc, nk = cone.shape[0], capr.shape[0]
+        nc = cone.shape[0]
         C = np.zeros((self.n_in, self.nu))
         u = np.zeros(self.n_in)
         lb = np.zeros(self.nu)

@@ -104,16 +104,24 @@ class Effect:
 
     def resolve_params(self, given: Mapping[str, float]) -> dict[str, float]:
         """Defaults overridden by ``given``; unknown names and out-of-range values rejected."""
-        unknown = set(given) - set(self.params)
-        if unknown:
-            bad = sorted(unknown)[0]
-            close = difflib.get_close_matches(bad, list(self.params), n=1)
-            hint = f"; did you mean '{close[0]}'?" if close else ""
-            raise ConfigError(f"effect '{self.name}' has no parameter '{bad}'{hint}",
-                              key=f"effects.{self.name}.{bad}",
-                              allowed=", ".join(self.params) or "none")
-        return {k: spec.check(self.name, k, given.get(k, spec.default))
-                for k, spec in self.params.items()}
+        return resolve_params(self.name, self.params, given)
+
+
+def resolve_params(effect: str, params: Mapping[str, Param],
+                   given: Mapping[str, float] | None) -> dict[str, float]:
+    """Parameter values of ``effect``: ``params`` defaults overridden by ``given``.
+
+    Unknown names (with a did-you-mean) and out-of-range values raise :class:`ConfigError`.
+    """
+    given = dict(given or {})
+    unknown = set(given) - set(params)
+    if unknown:
+        bad = sorted(unknown)[0]
+        close = difflib.get_close_matches(bad, list(params), n=1)
+        hint = f"; did you mean '{close[0]}'?" if close else ""
+        raise ConfigError(f"effect '{effect}' has no parameter '{bad}'{hint}",
+                          key=f"effects.{effect}.{bad}", allowed=", ".join(params) or "none")
+    return {k: spec.check(effect, k, given.get(k, spec.default)) for k, spec in params.items()}
 
 
 _REGISTRY: dict[str, Effect] = {}
@@ -180,7 +188,7 @@ def inertial_drag(o, s: PatchState, p):
     return (k * vx, k * vy, k * vz)
 
 
-__all__ = ["Param", "PatchState", "Effect", "register_effect", "get_effect",
+__all__ = ["Param", "PatchState", "Effect", "register_effect", "resolve_params", "get_effect",
            "registered_effects", "load_effect_file", "inertial_drag"]
 
 # the effects library (cohesion, depth hardening, … and the joint / sensor / geometry kinds)

@@ -55,7 +55,7 @@ import numpy as np
 
 from ..exceptions import ConfigError
 from .effects import _REGISTRY as _TERRAIN_REGISTRY
-from .effects import Param, PatchState, register_effect
+from .effects import Param, PatchState, register_effect, resolve_params
 
 EffectKind = Literal["terrain_force", "joint", "sensor", "geometry"]
 KINDS: tuple[str, ...] = ("terrain_force", "joint", "sensor", "geometry")
@@ -90,17 +90,7 @@ class EffectInfo:
 
     def resolve_params(self, given: Mapping[str, float] | None = None) -> dict[str, float]:
         """Defaults overridden by ``given``; unknown names and out-of-range values rejected."""
-        given = dict(given or {})
-        unknown = set(given) - set(self.params)
-        if unknown:
-            bad = sorted(unknown)[0]
-            close = difflib.get_close_matches(bad, list(self.params), n=1)
-            hint = f"; did you mean '{close[0]}'?" if close else ""
-            raise ConfigError(f"effect '{self.name}' has no parameter '{bad}'{hint}",
-                              key=f"effects.{self.name}.{bad}",
-                              allowed=", ".join(self.params) or "none")
-        return {k: spec.check(self.name, k, given.get(k, spec.default))
-                for k, spec in self.params.items()}
+        return resolve_params(self.name, self.params, given)
 
     def neutral_params(self) -> dict[str, float]:
         """Parameters with the effect switched off (shape parameters at their defaults)."""

@@ -31,7 +31,9 @@ import numpy as np
 from .prepare import StanceWindow
 
 #: fitted parameters (θ name, bounds [θ units]); φ_s in radians
-CAL_PARAMS = {"zeta": (0.05, 10.0), "phi_s": (math.radians(15.0), math.radians(70.0))}
+#: (granular media: ζ from 0.33 (glass beads) to 3.05 (Mojave simulant); φ_s of sands and
+#: beads 25–50°)
+CAL_PARAMS = {"zeta": (0.1, 6.0), "phi_s": (math.radians(25.0), math.radians(50.0))}
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,7 @@ from __future__ import annotations
 import json
 import math
 import time as _time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -58,6 +58,8 @@ MAX_DELTA_AICC = -10.0            # "strong" evidence (Burnham–Anderson)
 MIN_INCLUSION = 0.6               # selected in most bootstrap refits
 MIN_STANCE_REDUCTION = 0.01       # and ≥ 1 % less held-out error stance by stance
 T_CELL = 4.0                      # |t| of a channel × phase cell that counts as structure
+MAJOR_BIAS = 1.0                  # … and |bias| ≥ this × the stance-to-stance scatter: major
+MIN_EFFECT_SIZE = 0.5             # an added effect must change some cell's mean by ≥ this σ
 
 FEATURE_EXPERIMENTS = {
     "depth": "a wider range of sinkage (looser or deeper sand, a payload)",
@@ -65,6 +67,9 @@ FEATURE_EXPERIMENTS = {
     "rise_from_deepest": "different pull-out motions (higher foot lift, slower push-off)",
     "sink_acceleration": "harder or softer touchdown impacts",
     "slip_velocity": "more horizontal slip (turning, side steps, higher speed)",
+    "v_h": "different forward sole speeds at touchdown and pull-out (speed, swing timing)",
+    "v_l": "sideways sole motion (side steps, turning)",
+    "vc_z": "different vertical sole speeds (swing height, touchdown speed)",
     "time_in_stance": "a different gait period (longer or shorter stance)",
     "joint_speed": "a wider range of joint speeds (speeds, swing durations)",
     "trunk_speed": "a wider range of commanded speeds",
@@ -188,34 +193,53 @@ def _aicc(rss: float, n: float, k: int) -> float:
 
 
 class Regression:
-    """Bounded least squares on a :class:`Design` with CV, AICc and bootstrap tools."""
+    """Bounded least squares on a :class:`Design` with CV, AICc and bootstrap tools.
+
+    ``design`` holds the rows that are fitted (the systematic, stance-averaged rows);
+    ``stance_design`` (optional) holds the stance-by-stance rows on which the same fit is
+    also scored. Cross-validation folds are whole groups (trials) shared by both.
+    """
 
     def __init__(self, design: Design, bounds: Mapping[str, tuple[float, float]],
-                 nuisance: Sequence[str], *, n_splits: int = 5, seed: int = 0) -> None:
+                 nuisance: Sequence[str], *, stance_design: Design | None = None,
+                 n_splits: int = 5, seed: int = 0) -> None:
         from sklearn.model_selection import GroupKFold
 
         self.d = design
         self.bounds = dict(bounds)
         self.nuisance = list(nuisance)
+        self.ok, self.y, self.cols, self.groups = self._arrays(design)
+        ug = np.unique(self.groups)
+        self.splits, self.st_splits = [], []
+        self.st = None
+        if stance_design is not None:
+            self.st = self._arrays(stance_design)
+            self._st_channel = stance_design.channel[self.st[0]]
+            self._st_bin = stance_design.phase_bin[self.st[0]]
+        if ug.size >= 2:
+            gkf = GroupKFold(n_splits=min(n_splits, ug.size))
+            for _, te_g in gkf.split(ug, groups=ug):
+                test = set(ug[te_g])
+                te = np.array([g in test for g in self.groups])
+                self.splits.append((np.flatnonzero(~te), np.flatnonzero(te)))
+                if self.st is not None:
+                    ste = np.array([g in test for g in self.st[3]])
+                    self.st_splits.append(np.flatnonzero(ste))
+        self.seed = seed
+
+    @staticmethod
+    def _arrays(design: Design):
         ok = np.isfinite(design.y)
         for v in design.X.values():
             ok &= np.isfinite(v)
-        self.ok = ok
-        self.y = design.y[ok]
-        self.cols = {k: v[ok] for k, v in design.X.items()}
-        self.groups = design.groups[ok]
-        ng = np.unique(self.groups).size
-        self.splits = []
-        if ng >= 2:
-            gkf = GroupKFold(n_splits=min(n_splits, ng))
-            self.splits = list(gkf.split(self.y, groups=self.groups))
-        self.seed = seed
+        return ok, design.y[ok], {k: v[ok] for k, v in design.X.items()}, design.groups[ok]
 
-    def matrix(self, keys: Sequence[str], rows=None):
+    def matrix(self, keys: Sequence[str], rows=None, cols=None):
+        cols = self.cols if cols is None else cols
+        n = next(iter(cols.values())).size if cols else 0
         if not keys:
-            n = self.y.size if rows is None else len(rows)
-            return np.zeros((n, 0)), np.zeros(0), np.zeros(0)
-        X = np.column_stack([self.cols[k] for k in keys])
+            return np.zeros((n if rows is None else len(rows), 0)), np.zeros(0), np.zeros(0)
+        X = np.column_stack([cols[k] for k in keys])
         lb = np.array([self.bounds[k][0] for k in keys])
         ub = np.array([self.bounds[k][1] for k in keys])
         return (X if rows is None else X[rows]), lb, ub
@@ -227,15 +251,42 @@ class Regression:
         r = y - X @ beta if len(keys) else y
         return beta, float(r @ r)
 
-    def cv(self, keys: Sequence[str]) -> tuple[float, list[float]]:
-        """Held-out SSE (sum over folds) and per-fold SSE."""
-        per = []
-        for tr, te in self.splits:
-            X, lb, ub = self.matrix(keys)
+    def cv(self, keys: Sequence[str]) -> dict:
+        """Held-out SSE of the fitted rows (total and per fold) and, with a stance design,
+        of the stance rows of the held-out trials under the same fit."""
+        per, per_st = [], []
+        X, lb, ub = self.matrix(keys)
+        if self.st is not None:
+            Xs, _, _ = self.matrix(keys, cols=self.st[2])
+        for k, (tr, te) in enumerate(self.splits):
             beta = _fit(X[tr], self.y[tr], lb, ub)
             r = self.y[te] - X[te] @ beta if len(keys) else self.y[te]
             per.append(float(r @ r))
-        return float(sum(per)), per
+            if self.st is not None:
+                ste = self.st_splits[k]
+                rs = self.st[1][ste] - Xs[ste] @ beta if len(keys) else self.st[1][ste]
+                per_st.append(float(rs @ rs))
+        return {"sse": float(sum(per)), "folds": per,
+                "sse_stance": float(sum(per_st)) if per_st else float("nan")}
+
+    def practical_size(self, keys: Sequence[str], beta: np.ndarray) -> float:
+        """Largest stance-averaged change of the prediction that ``beta`` on ``keys``
+        makes in any channel × phase cell, in units of that channel's stance-to-stance
+        scatter σ (geometry rows: RMS over the touchdowns)."""
+        if self.st is None or not len(keys):
+            return float("nan")
+        X, _, _ = self.matrix(keys, cols=self.st[2])
+        v = X @ beta
+        out = 0.0
+        for ch in np.unique(self._st_channel):
+            m = self._st_channel == ch
+            if ch == "touchdown_z":
+                out = max(out, float(np.sqrt(np.mean(v[m] ** 2))))
+                continue
+            bins = self._st_bin[m]
+            for b in np.unique(bins):
+                out = max(out, abs(float(v[m][bins == b].mean())))
+        return out
 
     def n_eff(self, rows=None) -> float:
         n = self.y.size if rows is None else len(rows)
@@ -302,20 +353,30 @@ def localize(windows: Sequence[StanceWindow], R: np.ndarray, channels: Sequence[
 
     W, C, B = R.shape
     cells = []
-    for c, ch in enumerate(channels):
-        for b in range(B):
-            v = R[:, c, b]
-            v = v[np.isfinite(v)]
-            if v.size < 3:
-                continue
-            mean, sd = float(v.mean()), float(v.std(ddof=1))
-            t = mean / (sd / math.sqrt(v.size)) if sd > 0 else 0.0
-            cells.append({"channel": ch, "phase_lo": float(edges[b]), "phase_hi": float(edges[b + 1]),
-                          "bias": mean, "sd": sd, "rms": float(np.sqrt(np.mean(v ** 2))),
-                          "t": t, "n": int(v.size), "unit": channel_unit(ch),
-                          "normalised_bias": mean / sigma.get(ch, 1.0)})
+    sides = np.array([w.side for w in windows])
+    # pooled over both stance sides, and per side (a lateral effect may flip sign with the
+    # side, or the legs may answer it differently)
+    for side in ("all", "left", "right"):
+        m_side = np.ones(W, bool) if side == "all" else sides == side
+        if m_side.sum() < 3:
+            continue
+        for c, ch in enumerate(channels):
+            for b in range(B):
+                v = R[m_side, c, b]
+                v = v[np.isfinite(v)]
+                if v.size < 3:
+                    continue
+                mean, sd = float(v.mean()), float(v.std(ddof=1))
+                t = mean / (sd / math.sqrt(v.size)) if sd > 0 else 0.0
+                cells.append({"channel": ch, "side": side, "phase_lo": float(edges[b]),
+                              "phase_hi": float(edges[b + 1]), "bias": mean, "sd": sd,
+                              "rms": float(np.sqrt(np.mean(v ** 2))), "t": t, "n": int(v.size),
+                              "unit": channel_unit(ch),
+                              "normalised_bias": mean / sigma.get(ch, 1.0)})
     sig = [cl for cl in cells if abs(cl["t"]) >= T_CELL]
-    sig.sort(key=lambda cl: -abs(cl["t"]))
+    for cl in sig:
+        cl["major"] = bool(abs(cl["normalised_bias"]) >= MAJOR_BIAS)
+    sig.sort(key=lambda cl: (not cl["major"], -abs(cl["t"])))
     # by channel: share of the systematic part
     by_channel = {}
     for c, ch in enumerate(channels):
@@ -339,8 +400,8 @@ def localize(windows: Sequence[StanceWindow], R: np.ndarray, channels: Sequence[
                              "n_stances": int(m.sum())})
     # correlates: binned features vs binned normalised residual
     feats = ["depth", "sink_velocity", "rise_from_deepest", "sink_acceleration",
-             "slip_velocity", "time_in_stance", "joint_speed", "trunk_speed", "grf_z",
-             "x_position"]
+             "slip_velocity", "v_h", "v_l", "vc_z", "time_in_stance", "joint_speed",
+             "trunk_speed", "grf_z", "x_position"]
     Fcube = np.empty((W, len(feats), B))
     for i, w in enumerate(windows):
         Fcube[i] = _bin_means(w, w.features, feats, edges)
@@ -381,6 +442,7 @@ def localize(windows: Sequence[StanceWindow], R: np.ndarray, channels: Sequence[
             whiteness[ch] = {"lags": lags, "q": float(lb["lb_stat"].iloc[0]),
                              "p_value": float(lb["lb_pvalue"].iloc[0])}
     return {"cells": cells, "significant_cells": sig[:40], "n_significant_cells": len(sig),
+            "n_major_cells": int(sum(cl["major"] for cl in sig)),
             "by_channel": by_channel, "by_speed": by_speed, "correlates": correlates,
             "whiteness_stance_sequence": whiteness}
 
@@ -396,8 +458,9 @@ def _where_summary(loc: dict, top: int = 5) -> list[str]:
         cor = [e for e in loc["correlates"].get(key, []) if e.get("p_value") == e.get("p_value")
                and e["p_value"] is not None and e["p_value"] < 1e-3 and abs(e["spearman"]) >= 0.2]
         with_what = ", ".join(f"{e['feature']} (ρ = {e['spearman']:+.2f})" for e in cor[:3])
+        side = "" if cl.get("side", "all") == "all" else f" ({cl['side']} stances)"
         lines.append(f"{key}: bias {cl['bias']:+.3g} {cl['unit']} at {cl['phase_lo']:g}–"
-                     f"{cl['phase_hi']:g} % of stance (t = {cl['t']:+.1f})"
+                     f"{cl['phase_hi']:g} % of stance{side} (t = {cl['t']:+.1f})"
                      + (f"; correlates with {with_what}" if with_what else ""))
         if len(lines) >= top:
             break
@@ -511,7 +574,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
              candidates: Sequence[str] | None = None, seed: int = 0,
              terrain: Any = "dry_sand", sim: SimConfig | None = None,
              workers: int | None = None, n_boot: int = 200, phase_bins: int = 10,
-             max_effects: int = 2, refine_iterations: int = 1,
+             max_effects: int = 2, refine_iterations: int = 2,
+             calibrate_params: Sequence[str] = ("zeta",), max_contenders: int = 2,
              effect_files: Sequence[str | Path] = (), figures: bool = True) -> Diagnosis:
     """Calibrate the model on a data set, then find, rank and localise missing effects.
 
@@ -528,6 +592,13 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
         phase_bins: stance-phase bins of the residual rows.
         max_effects: at most this many effects are added.
         refine_iterations: Gauss–Newton replay iterations for the added effects.
+        max_contenders: significant candidates refined by replays before one is added
+            (the linear screening can misorder strong, nonlinear effects).
+        calibrate_params: terrain parameters calibrated and kept free (nuisance) in the
+            regression: ``("zeta",)`` (default) or ``("zeta", "phi_s")``. φ_s is always
+            estimated for the report (``calibration.free_phi_s``), but left free it trades
+            off against depth-dependent effects (it shapes the capacity–depth curve), so
+            by default the model keeps the terrain file's value.
         effect_files: user Python files registering effects (imported first; their
             effects become candidates).
         figures: write figures and the one-page report.
@@ -538,7 +609,7 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     from ..robot.model import load_biped
     from ..terrain.effects import load_effect_file
     from ..terrain.effects_library import SensorContext, apply_sensor_effects
-    from .calibrate import calibrate
+    from .calibrate import CAL_PARAMS, calibrate
     from .dataformat import load_dataset
     from .prepare import stance_windows
 
@@ -567,58 +638,55 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     gkeys = _group_keys(windows)
     # ---------------------------------------------------------------- 1. calibrate
     t0 = _time.perf_counter()
-    cal = calibrate(windows, rm0.terrain, n_slices=biped.config.foot.slices, seed=seed)
+    cal = calibrate(windows, rm0.terrain, n_slices=biped.config.foot.slices, seed=seed,
+                    params=tuple(calibrate_params))
+    cal_free = (calibrate(windows, rm0.terrain, n_slices=biped.config.foot.slices, seed=seed,
+                          params=("zeta", "phi_s"))
+                if "phi_s" not in calibrate_params else cal)
     rm = build_replay_model(biped, cfg0, sample_rate_hz=ds.meta.sample_rate_hz, sim=sim,
                             terrain_effects=terrain_names)
     pool = ReplayPool(rm, windows, workers=workers)
-    theta = {"zeta": cal.values["zeta"], "phi_s": cal.values["phi_s"]}
+    theta = dict(cal.values)
+    theta["touchdown_depth"] = 0.0
 
     def nuis_columns(th):
-        return [Column("calibration", "zeta", th["zeta"], 0.08 * th["zeta"], 0.05, 10.0),
-                Column("calibration", "phi_s", th["phi_s"], math.radians(3.0),
-                       math.radians(15.0), math.radians(70.0), "rad")]
+        cols = []
+        if "zeta" in th:
+            lo, hi = CAL_PARAMS["zeta"]
+            cols.append(Column("calibration", "zeta", th["zeta"], 0.08 * th["zeta"], lo, hi))
+        if "phi_s" in th:
+            plo, phi = CAL_PARAMS["phi_s"]
+            cols.append(Column("calibration", "phi_s", th["phi_s"], math.radians(3.0), plo, phi,
+                               "rad"))
+        cols.append(Column("calibration", "touchdown_depth", th.get("touchdown_depth", 0.0),
+                           5e-4, -1e-3, 2e-3, "m"))
+        return cols
 
-    # replay refinement of the calibration (Gauss–Newton on the systematic rows)
-    geo = _geometry_rows(windows, trials, {}, infos)
-    nuis_cols = nuis_columns(theta)
-    variants = {"base": Variant(theta=dict(theta), label="calibrated")}
-    for col in nuis_cols:
-        variants[col.key] = Variant(theta={**theta, col.param: col.neutral + col.step})
-    preds0 = pool.run(variants)
-    R0 = _residual_cube(windows, preds0["base"], channels, edges)
-    P0 = _pred_cube(windows, preds0["base"], channels, edges)
-    nuis_sens = {c.key: (_pred_cube(windows, preds0[c.key], channels, edges) - P0) / c.step
-                 for c in nuis_cols}
-    sigma = _sigma(R0, channels, gkeys)
-    d0 = build_design("group", windows, R0, nuis_sens, channels, sigma, geo)
-    reg0 = Regression(d0, {c.key: (c.lower - c.neutral, c.upper - c.neutral) for c in nuis_cols},
-                      [c.key for c in nuis_cols], seed=seed)
-    beta0, _ = reg0.fit([c.key for c in nuis_cols])
-    theta_cal = {c.param: float(np.clip(c.neutral + b, c.lower, c.upper))
-                 for c, b in zip(nuis_cols, beta0)}
-    moved = (abs(theta_cal["zeta"] - theta["zeta"]) > 0.005 * theta["zeta"]
-             or abs(theta_cal["phi_s"] - theta["phi_s"]) > math.radians(0.2))
     timing["calibrate"] = _time.perf_counter() - t0
     # ---------------------------------------------------------------- 2. replays
+    # the calibrated model, its calibration sensitivities (nuisance columns, always in the
+    # regression) and one replay per candidate column at its nominal magnitude
     t0 = _time.perf_counter()
+    theta_cal = dict(theta)
+    nuis_cols = nuis_columns(theta_cal)
     base = Variant(theta=dict(theta_cal), label="calibrated")
+    variants = {"base": base}
+    for col in nuis_cols:
+        variants[col.key] = base.with_theta(**{col.param: col.neutral + col.step})
     cand_cols: dict[str, list[Column]] = {}
-    variants = {"base": base} if moved else {}
     for n, info in infos.items():
         cand_cols[n] = candidate_columns(info)
         if info.kind == "sensor":
             continue
         for col in cand_cols[n]:
             variants[col.key] = _variant_for(info, {col.param: col.neutral + col.step}, base)
-    preds = pool.run(variants) if variants else {}
-    if not moved:
-        preds["base"] = preds0["base"]
+    preds = pool.run(variants)
     timing["replays"] = _time.perf_counter() - t0
     t0 = _time.perf_counter()
     R = _residual_cube(windows, preds["base"], channels, edges)
     Pb = _pred_cube(windows, preds["base"], channels, edges)
-    nuis_cols = nuis_columns(theta_cal)
-    sens: dict[str, np.ndarray] = {c.key: nuis_sens[f"calibration.{c.param}"] for c in nuis_cols}
+    sens: dict[str, np.ndarray] = {c.key: (_pred_cube(windows, preds[c.key], channels, edges)
+                                           - Pb) / c.step for c in nuis_cols}
     for n, cols in cand_cols.items():
         info = infos[n]
         for col in cols:
@@ -642,52 +710,187 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
             bounds[col.key] = (col.lower - col.neutral, col.upper - col.neutral)
     base_keys = [c.key for c in nuis_cols]
     cand_keys = {n: [c.key for c in cols] for n, cols in cand_cols.items()}
-    d_grp = build_design("group", windows, R, sens, channels, sigma, geo)
-    d_stn = build_design("stance", windows, R, sens, channels, sigma, geo)
     n_trials = np.unique(trials).size
-    group_unit = "trial"
-    if n_trials < 3:                    # too few trials to hold any out: use stances
-        group_unit = "stance"
-        d_stn.groups = d_stn.window.astype(str)
-        d_grp = d_stn                   # no group averaging possible either
-    reg = Regression(d_grp, bounds, base_keys, seed=seed)
-    reg_st = Regression(d_stn, bounds, base_keys, seed=seed)
+    group_unit = "trial" if n_trials >= 3 else "stance"
+
+    def make_reg(R_, sens_, geo_, bounds_, keys_):
+        """Systematic rows (stance-averaged per trial and side) scored also stance by
+        stance; with fewer than 3 trials, stances are the units (no averaging)."""
+        d_s = build_design("stance", windows, R_, sens_, channels, sigma, geo_)
+        if group_unit == "stance":
+            d_s.groups = d_s.window.astype(str)
+            return Regression(d_s, bounds_, keys_, stance_design=d_s, seed=seed), d_s, d_s
+        d_g = build_design("group", windows, R_, sens_, channels, sigma, geo_)
+        return Regression(d_g, bounds_, keys_, stance_design=d_s, seed=seed), d_g, d_s
+
+    reg, d_grp, d_stn = make_reg(R, sens, geo, bounds, base_keys)
     timing["design"] = _time.perf_counter() - t0
-    # ---------------------------------------------------------------- 3. rank
+    # ---------------------------------------------------------------- 3. rank, add, refine
     t0 = _time.perf_counter()
-    ranking, selected = _rank(reg, reg_st, base_keys, cand_keys, cand_cols, infos,
-                              n_boot=n_boot, seed=seed, max_effects=max_effects)
-    indist = _indistinguishable(reg, base_keys, cand_keys, ranking, windows, infos, reg_st)
+    ranking = _candidate_stats(reg, base_keys, cand_keys, cand_cols, infos, n_boot=n_boot,
+                               seed=seed, max_effects=max_effects)
+    indist = _indistinguishable(reg, base_keys, cand_keys, ranking, windows, infos,
+                                Regression(d_stn, bounds, base_keys, seed=seed))
     timing["rank"] = _time.perf_counter() - t0
-    # ---------------------------------------------------------------- refine (replays)
     t0 = _time.perf_counter()
+    selected: list[str] = []
     fitted: dict[str, dict[str, float]] = {}
-    refine_log = []
+    steps_log: list[dict] = []
     final_preds = preds["base"]
-    nuis_beta = reg.fit(base_keys)[0]
     theta_final = dict(theta_cal)
+    stats = ranking
+    sens_sel: dict[str, np.ndarray] = {}
+    R_cur = R
+    n_nuis = len(base_keys)
+
+    def refined_score(fit_, preds_, sel_):
+        """AICc of the stance-averaged weighted residual of a refined (replayed) model."""
+        R_ = _residual_cube(windows, preds_, channels, edges)
+        gy = geo["y"].copy()
+        for s_ in sel_:
+            for c in cand_cols[s_]:
+                if c.key in geo["sens"]:
+                    gy = gy - geo["sens"][c.key] * (fit_[s_][c.param] - c.neutral)
+        d_ = make_reg(R_, {}, {"y": gy, "sigma": geo["sigma"], "sens": {}}, {}, [])[1]
+        y_ = d_.y[np.isfinite(d_.y)]
+        k_ = n_nuis + sum(len(cand_cols[s_]) for s_ in sel_)
+        return _aicc(float(y_ @ y_), y_.size * d_.n_eff_factor, k_), float(y_ @ y_)
+
+    while len(selected) < max_effects:
+        contenders = [r for r in stats if r["significant"] and r["effect"] not in selected]
+        contenders = contenders[:max_contenders]
+        if not contenders:
+            break
+        prev_vals = {(s_, c.param): fitted[s_][c.param] for s_ in selected
+                     for c in cand_cols[s_]}
+        trials_ = []
+        for r in contenders:
+            start_vals = dict(prev_vals)
+            for p_, v in r["params"].items():
+                start_vals[(r["effect"], p_)] = float(v["value"])
+            sel_ = selected + [r["effect"]]
+            its = 1 if len(contenders) > 1 else refine_iterations
+            res_ = _refine(pool, base, windows, channels, edges, sigma, sel_, cand_cols, infos,
+                           start_vals, nuis_columns(theta_final), sens, geo, iterations=its)
+            score, rss = refined_score(res_[0], res_[2], sel_)
+            trials_.append((score, r, res_, its))
+            for e in ranking:
+                if e["effect"] == r["effect"]:
+                    e.setdefault("refined_fits", []).append(
+                        {"given": list(selected), "aicc": score, "weighted_rss": rss,
+                         "params": res_[0][r["effect"]]})
+        trials_.sort(key=lambda t: t[0])
+        score, best, res_, its = trials_[0]
+        selected.append(best["effect"])
+        if its < refine_iterations:          # finish the winner's refinement
+            start_vals = {(s_, c.param): res_[0][s_][c.param] for s_ in selected
+                          for c in cand_cols[s_]}
+            res_ = _refine(pool, base, windows, channels, edges, sigma, selected, cand_cols,
+                           infos, start_vals, nuis_columns(res_[1]), sens, geo,
+                           iterations=refine_iterations - its)
+        fitted, theta_final, final_preds, log, sens_sel = res_
+        steps_log.append({"added": best["effect"], "contenders": [t[1]["effect"] for t in trials_],
+                          "contender_aicc": [t[0] for t in trials_], "refine": log})
+        if len(selected) >= max_effects:
+            break
+        # conditional test of the others against the refined model (linearised around it)
+        R_cur = _residual_cube(windows, final_preds, channels, edges)
+        sens_c = dict(sens)
+        sens_c.update(sens_sel)
+        geo_c = dict(geo)
+        gy = geo["y"].copy()
+        for s_ in selected:
+            for c in cand_cols[s_]:
+                if c.key in geo["sens"]:
+                    gy = gy - geo["sens"][c.key] * (fitted[s_][c.param] - c.neutral)
+        geo_c["y"] = gy
+        b_c = dict(bounds)
+        for s_ in selected:
+            for c in cand_cols[s_]:
+                cur = fitted[s_][c.param]
+                b_c[c.key] = (c.lower - cur, c.upper - cur)
+        nk = nuis_columns(theta_final)
+        for c in nk:
+            b_c[c.key] = (c.lower - c.neutral, c.upper - c.neutral)
+        keys_fixed = base_keys + [k for s_ in selected for k in cand_keys[s_]]
+        reg_c = make_reg(R_cur, sens_c, geo_c, b_c, keys_fixed)[0]
+        rest = {n: k for n, k in cand_keys.items() if n not in selected}
+        stats = _candidate_stats(reg_c, keys_fixed, rest, cand_cols, infos, n_boot=n_boot,
+                                 seed=seed, max_effects=max_effects - len(selected))
+        steps_log[-1]["conditional"] = [{k: r[k] for k in ("effect", "heldout_error_reduction",
+                                                           "heldout_error_reduction_stance",
+                                                           "delta_aicc", "inclusion_probability",
+                                                           "effect_size", "significant")}
+                                        for r in stats]
+        for r in stats:
+            for e in ranking:
+                if e["effect"] == r["effect"]:
+                    e.setdefault("conditional", []).append(
+                        {"given": list(selected), "heldout_error_reduction":
+                         r["heldout_error_reduction"], "significant": r["significant"]})
+    for e in ranking:
+        e["added"] = e["effect"] in selected
+        e["linear_rank"] = e["rank"]
+        if e["effect"] in fitted:
+            e["refined_params"] = fitted[e["effect"]]
+    # final order: the added effects (in the order the refined fits chose them), then the
+    # others by their screening held-out error reduction
+    order = {n: i for i, n in enumerate(selected)}
+    ranking.sort(key=lambda e: (order.get(e["effect"], len(order)), e["linear_rank"]))
+    for i, e in enumerate(ranking):
+        e["rank"] = i + 1
+    # held-out statistics of the added effects along the secant from the calibrated to the
+    # refined model (both replayed): exact at both ends, linear in between
+    refined_cv: dict = {}
     if selected:
-        fitted, theta_final, final_preds, refine_log = _refine(
-            pool, base, windows, channels, edges, sigma, selected, cand_cols, infos, ranking,
-            nuis_cols, sens, geo, iterations=refine_iterations)
-        for e in ranking:
-            if e["effect"] in fitted:
-                e["refined_params"] = fitted[e["effect"]]
+        R_fin = _residual_cube(windows, final_preds, channels, edges)
+        sens_f = dict(sens)
+        sens_f["secant"] = R - R_fin                  # prediction change base → final
+        g_sec = np.zeros(len(windows))
+        for s_ in selected:
+            for c in cand_cols[s_]:
+                if c.key in geo["sens"]:
+                    g_sec = g_sec + geo["sens"][c.key] * (fitted[s_][c.param] - c.neutral)
+        geo_f = {"y": geo["y"], "sigma": geo["sigma"], "sens": {"secant": g_sec}}
+        b_f = dict(bounds)
+        b_f["secant"] = (0.0, 2.0)
+        reg_f = make_reg(R, sens_f, geo_f, b_f, base_keys)[0]
+        cv0, cv1 = reg_f.cv(base_keys), reg_f.cv(base_keys + ["secant"])
+        refined_cv = {
+            "heldout_error_reduction": 1.0 - cv1["sse"] / cv0["sse"] if cv0["sse"] > 0 else 0.0,
+            "heldout_error_reduction_stance": (1.0 - cv1["sse_stance"] / cv0["sse_stance"]
+                                               if cv0["sse_stance"] > 0 else 0.0),
+            "by_channel": _channel_heldout(reg_f, base_keys, ["secant"], channels, stance=True),
+            "note": "trial-grouped CV: the magnitude of the added effects (a scalar along the "
+                    "replayed change from the calibrated to the refined model) and the "
+                    "calibration are fitted on the training trials, the RMSE is scored on "
+                    "the held-out trials, stance by stance"}
     timing["refine"] = _time.perf_counter() - t0
     pool.close()
     # ---------------------------------------------------------------- 4. localise
     t0 = _time.perf_counter()
-    loc_before = localize(windows, R, channels, edges, sigma, model_df=len(base_keys), seed=seed)
-    R_after = _residual_cube(windows, final_preds, channels, edges) if selected else R
+    # the calibrated model as the regression sees it: the calibration re-fitted linearly
+    beta_n, _ = reg.fit(base_keys)
+    R_cal = R - sum(b * sens[k] for k, b in zip(base_keys, beta_n))
+    theta_lin = {c.param: float(c.neutral + b) for c, b in zip(nuis_cols, beta_n)}
+    if not selected:
+        theta_final = theta_lin
+    loc_before = localize(windows, R_cal, channels, edges, sigma, model_df=len(base_keys),
+                          seed=seed)
+    R_after = _residual_cube(windows, final_preds, channels, edges) if selected else R_cal
     n_fit = len(base_keys) + sum(len(cand_keys[s]) for s in selected)
     loc_after = localize(windows, R_after, channels, edges, sigma, model_df=n_fit, seed=seed)
     timing["localize"] = _time.perf_counter() - t0
     # ---------------------------------------------------------------- verdict
-    unexplained = loc_after["n_significant_cells"]
+    unexplained = loc_after["n_major_cells"]
     if selected:
         status = "missing_effect"
         text = ("missing effect" + ("s" if len(selected) > 1 else "") + ": "
-                + "; ".join(_effect_sentence(e) for e in ranking if e["effect"] in selected))
+                + "; ".join(_effect_sentence(e) for e in ranking if e["effect"] in selected)
+                + f"; refined fit: held-out error −"
+                  f"{100 * refined_cv.get('heldout_error_reduction', 0.0):.1f} % (stance-averaged), "
+                  f"−{100 * refined_cv.get('heldout_error_reduction_stance', 0.0):.1f} % "
+                  "(stance by stance)")
         if unexplained:
             text += (f". After adding {', '.join(selected)}, {unexplained} channel × phase "
                      "cells still show structure (see localization.after)")
@@ -697,19 +900,24 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
                 + " | ".join(_where_summary(loc_after, 4)))
     else:
         status = "no_significant_missing_effect"
-        text = "no significant missing effect: no candidate passes the held-out, AICc and " \
-               "bootstrap tests, and no channel × phase cell shows a systematic residual"
-    add_keys = [k for s in selected for k in cand_keys[s]]
-    channel_red = (_channel_heldout(reg_st, base_keys, add_keys, d_stn, channels)
-                   if selected else {})
-    channel_red_sys = (_channel_heldout(reg, base_keys, add_keys, d_grp, channels)
-                       if selected else {})
+        text = ("no significant missing effect: no candidate passes the held-out, AICc and "
+                "bootstrap tests, and no channel × phase cell shows a systematic residual "
+                f"larger than {MAJOR_BIAS:g} × the stance-to-stance scatter")
+        if loc_after["n_significant_cells"]:
+            text += (f" ({loc_after['n_significant_cells']} cells are statistically but not "
+                     "practically significant, see localization)")
+    channel_red = refined_cv.get("by_channel", {})
+    replay_rmse = _replay_rmse(windows, preds["base"], final_preds, channels) if selected else {}
     cal_json = cal.to_json()
     cal_json["equation_error_values"] = dict(cal.values)
+    cal_json["free_phi_s"] = {k: v for k, v in cal_free.to_json().items() if k != "method"}
     cal_json["values"] = dict(theta_final)
-    cal_json["replay_refined"] = {"values": theta_cal, "method": "one Gauss–Newton step on "
-                                  "the stance-averaged replay residuals (finite-difference "
-                                  "sensitivities of ζ and φ_s)"}
+    cal_json["replay_refined"] = {
+        "values": theta_final,
+        "linear_values": theta_lin,
+        "method": "the calibration's sensitivity columns (ζ, φ_s and the touchdown depth) are "
+                  "fitted with the candidates on the stance-averaged replay residuals; with "
+                  "added effects, jointly refined by Gauss–Newton replays"}
     cal_json["values_readable"] = {("phi_s_deg" if k == "phi_s" else k):
                                    (math.degrees(v) if k == "phi_s" else v)
                                    for k, v in theta_final.items()}
@@ -717,6 +925,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
         "data": str(data_dir),
         "verdict": {"status": status, "text": text, "added": list(selected),
                     "thresholds": {"min_heldout_error_reduction": MIN_HELDOUT_REDUCTION,
+                                   "min_heldout_error_reduction_stance": MIN_STANCE_REDUCTION,
+                                   "min_effect_size_sigma": MIN_EFFECT_SIZE,
                                    "max_delta_aicc": MAX_DELTA_AICC,
                                    "min_inclusion_probability": MIN_INCLUSION,
                                    "cell_t": T_CELL}},
@@ -725,19 +935,22 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
         "indistinguishable": indist,
         "fitted_effects": fitted,
         "heldout_reduction_by_channel": channel_red,
-        "heldout_reduction_by_channel_systematic": channel_red_sys,
+        "refined_heldout": refined_cv,
+        "replay_rmse_by_channel": replay_rmse,
         "localization": {"where": _where_summary(loc_before, 6), "before": loc_before,
                          "after": loc_after, "unexplained_where": _where_summary(loc_after, 6),
                          "n_significant_cells_before": loc_before["n_significant_cells"],
-                         "n_significant_cells_after": unexplained},
+                         "n_significant_cells_after": loc_after["n_significant_cells"],
+                         "n_major_cells_before": loc_before["n_major_cells"],
+                         "n_major_cells_after": unexplained},
         "design": {"n_stances": W, "n_trials": int(n_trials), "channels": channels,
                    "phase_bins": phase_bins, "rows_systematic": int(reg.y.size),
-                   "rows_stance": int(reg_st.y.size),
+                   "rows_stance": int(reg.st[1].size),
                    "n_eff_factor": {"systematic": d_grp.n_eff_factor, "stance": d_stn.n_eff_factor},
                    "sigma": d_grp.sigma, "cv_groups": group_unit,
                    "cv_folds": len(reg.splits), "diverged_stances": diverged,
                    "candidates": {n: infos[n].kind for n in infos},
-                   "replays": pool.n_replays, "refine": refine_log},
+                   "replays": pool.n_replays, "steps": steps_log},
         "recommended": _recommend(theta_final, fitted),
     }
     timing["total"] = _time.perf_counter() - t_start
@@ -797,17 +1010,16 @@ def _geometry_rows(windows, trials, cand_cols, infos) -> dict:
 # ======================================================================================
 
 
-def _rank(reg: Regression, reg_st: Regression, base_keys, cand_keys, cand_cols, infos, *,
-          n_boot, seed, max_effects):
-    """Marginal statistics of every candidate (against the calibrated model) and the
-    forward selection of the effects to add."""
-    sse0, folds0 = reg.cv(base_keys)
-    sse0_st, _ = reg_st.cv(base_keys)
+def _candidate_stats(reg: Regression, base_keys, cand_keys, cand_cols, infos, *, n_boot,
+                     seed, max_effects, values_now=None) -> list[dict]:
+    """Statistics of every candidate in ``cand_keys`` against the model ``base_keys``:
+    held-out error reduction (systematic rows; stance rows under the same fit), ΔAICc,
+    bootstrap inclusion probability, fitted parameters with intervals, significance."""
+    cv0 = reg.cv(base_keys)
     a0 = reg.aicc(base_keys)
     rows = []
     for n, keys in cand_keys.items():
-        sse, folds = reg.cv(base_keys + keys)
-        sse_st, _ = reg_st.cv(base_keys + keys)
+        cv = reg.cv(base_keys + keys)
         beta, _ = reg.fit(base_keys + keys)
         cov = reg.covariance(base_keys + keys, beta)
         params = {}
@@ -819,16 +1031,21 @@ def _rank(reg: Regression, reg_st: Regression, base_keys, cand_keys, cand_cols, 
                                  "ci_lo": None if se is None else val - 1.96 * se,
                                  "ci_hi": None if se is None else val + 1.96 * se,
                                  "unit": col.unit, "neutral": col.neutral,
+                                 "lower": col.lower, "upper": col.upper,
                                  "at_bound": bool(np.isclose(val, col.lower) or np.isclose(val, col.upper))}
-        improved = sum(1 for f0, f1 in zip(folds0, folds) if f1 < f0)
+        improved = sum(1 for f0, f1 in zip(cv0["folds"], cv["folds"]) if f1 < f0)
+        size = reg.practical_size(keys, beta[len(base_keys):])
+        red_st = (1.0 - cv["sse_stance"] / cv0["sse_stance"]
+                  if cv0["sse_stance"] == cv0["sse_stance"] and cv0["sse_stance"] > 0 else 0.0)
         rows.append({"effect": n, "kind": infos[n].kind,
-                     "heldout_error_reduction": 1.0 - sse / sse0 if sse0 > 0 else 0.0,
-                     "heldout_error_reduction_stance": 1.0 - sse_st / sse0_st if sse0_st > 0 else 0.0,
+                     "heldout_error_reduction": 1.0 - cv["sse"] / cv0["sse"] if cv0["sse"] > 0 else 0.0,
+                     "heldout_error_reduction_stance": red_st,
                      "delta_aicc": reg.aicc(base_keys + keys) - a0,
-                     "folds_improved": f"{improved}/{len(folds)}",
+                     "folds_improved": f"{improved}/{len(cv['folds'])}",
+                     "effect_size": size,
                      "params": params, "main": infos[n].main,
                      "depends_on": list(infos[n].depends_on), "doc": infos[n].summary})
-    # bootstrap inclusion probability (forward selection by AICc on trial resamples)
+    # bootstrap inclusion probability: forward selection by AICc on resamples of trials
     rng = np.random.default_rng(seed)
     gs = np.unique(reg.groups)
     members = {g: np.flatnonzero(reg.groups == g) for g in gs}
@@ -838,8 +1055,7 @@ def _rank(reg: Regression, reg_st: Regression, base_keys, cand_keys, cand_cols, 
     for _ in range(B):
         pick = rng.choice(gs, gs.size, replace=True)
         rws = np.concatenate([members[g] for g in pick])
-        chosen = _forward(reg, cand_keys, base_keys, rws, max_terms=max_effects)
-        for n in chosen:
+        for n in _forward(reg, cand_keys, base_keys, rws, max_terms=max_effects):
             counts[n] += 1
         for n, keys in cand_keys.items():
             beta, _ = reg.fit(base_keys + keys, rws)
@@ -856,40 +1072,12 @@ def _rank(reg: Regression, reg_st: Regression, base_keys, cand_keys, cand_cols, 
         r["significant"] = bool(r["heldout_error_reduction"] >= MIN_HELDOUT_REDUCTION
                                 and r["heldout_error_reduction_stance"] >= MIN_STANCE_REDUCTION
                                 and r["delta_aicc"] <= MAX_DELTA_AICC
+                                and not (r["effect_size"] < MIN_EFFECT_SIZE)
                                 and (r["inclusion_probability"] if B else 1.0) >= MIN_INCLUSION)
     rows.sort(key=lambda r: -r["heldout_error_reduction"])
     for i, r in enumerate(rows):
         r["rank"] = i + 1
-    # forward selection of what to add: best significant first, then conditional tests
-    selected: list[str] = []
-    keys_now = list(base_keys)
-    pool = [r["effect"] for r in rows if r["significant"]]
-    while pool and len(selected) < max_effects:
-        best = pool[0] if not selected else None
-        if selected:
-            sse_now, _ = reg.cv(keys_now)
-            sse_now_st, _ = reg_st.cv(keys_now)
-            a_now = reg.aicc(keys_now)
-            best_red = MIN_HELDOUT_REDUCTION
-            for n in pool:
-                sse, _ = reg.cv(keys_now + cand_keys[n])
-                sse_st, _ = reg_st.cv(keys_now + cand_keys[n])
-                red = 1.0 - sse / sse_now
-                red_st = 1.0 - sse_st / sse_now_st
-                da = reg.aicc(keys_now + cand_keys[n]) - a_now
-                if red >= best_red and red_st >= MIN_STANCE_REDUCTION and da <= MAX_DELTA_AICC:
-                    best, best_red = n, red
-            if best is None:
-                break
-            for r in rows:
-                if r["effect"] == best:
-                    r["conditional_heldout_error_reduction"] = best_red
-        selected.append(best)
-        keys_now = keys_now + cand_keys[best]
-        pool = [p for p in pool if p != best]
-    for r in rows:
-        r["added"] = r["effect"] in selected
-    return rows, selected
+    return rows
 
 
 def _indistinguishable(reg: Regression, base_keys, cand_keys, ranking, windows, infos,
@@ -961,59 +1149,89 @@ def _separating_experiment(a: str, b: str, reg: Regression, cand_keys, windows,
             f"along '{best}'; an experiment with {where} would separate them.")
 
 
+def _dominant(e: dict) -> str:
+    """The fitted parameter furthest from its neutral value (relative to its range)."""
+    fit = e.get("refined_params", {})
+
+    def dist(p):
+        v = e["params"][p]
+        val = fit.get(p, v["value"])
+        return abs(val - v["neutral"]) / max(v.get("upper", 1.0) - v.get("lower", 0.0), 1e-12)
+
+    return max(e["params"], key=dist) if e["params"] else e["main"]
+
+
 def _effect_sentence(e: dict) -> str:
-    main = e["main"]
+    main = _dominant(e)
     p = e.get("refined_params", {}).get(main, e["params"].get(main, {}).get("value"))
     unit = e["params"].get(main, {}).get("unit", "")
-    return (f"{e['effect']} ({e['kind']}; {main} = {p:.4g} {unit}; held-out error "
-            f"−{100 * e['heldout_error_reduction']:.1f} %, ΔAICc {e['delta_aicc']:.0f}, "
-            f"inclusion {e['inclusion_probability']:.2f})")
+    inc = e["inclusion_probability"]
+    return (f"{e['effect']} ({e['kind']}; {main} = {p:.4g} {unit}; screening: held-out "
+            f"error −{100 * e['heldout_error_reduction']:.1f} %, ΔAICc {e['delta_aicc']:.0f}, "
+            f"inclusion {'–' if inc is None else f'{inc:.2f}'})")
 
 
-def _channel_heldout(reg: Regression, base_keys, add_keys, design, channels) -> dict:
-    """Per channel: held-out (trial-grouped CV) RMS of the weighted residual before and
-    after adding ``add_keys`` (linearised), in channel units."""
-    ch_rows = design.channel[reg.ok]
+def _channel_heldout(reg: Regression, base_keys, add_keys, channels, *, stance: bool) -> dict:
+    """Per channel: held-out (trial-grouped CV) RMS of the residual before and after adding
+    ``add_keys`` (linearised; fitted on the systematic rows of the training trials), on the
+    stance rows (``stance``) or the stance-averaged rows, in channel units."""
+    if stance and reg.st is None:
+        return {}
+    chan = (reg.d.channel[reg.ok] if not stance else None)
+    if stance:
+        # the stance design's channel labels
+        chan = reg._st_channel
     before = {c: 0.0 for c in list(channels) + ["touchdown_z"]}
     after = dict(before)
     count = dict(before)
-    for tr, te in reg.splits:
-        X0, lb0, ub0 = reg.matrix(base_keys)
+    X0, lb0, ub0 = reg.matrix(base_keys)
+    X1, lb1, ub1 = reg.matrix(base_keys + add_keys)
+    if stance:
+        X0s, _, _ = reg.matrix(base_keys, cols=reg.st[2])
+        X1s, _, _ = reg.matrix(base_keys + add_keys, cols=reg.st[2])
+    for k, (tr, te) in enumerate(reg.splits):
         b0 = _fit(X0[tr], reg.y[tr], lb0, ub0)
-        X1, lb1, ub1 = reg.matrix(base_keys + add_keys)
         b1 = _fit(X1[tr], reg.y[tr], lb1, ub1)
-        r0 = reg.y[te] - X0[te] @ b0
-        r1 = reg.y[te] - X1[te] @ b1
+        if stance:
+            ste = reg.st_splits[k]
+            y = reg.st[1][ste]
+            r0, r1 = y - X0s[ste] @ b0, y - X1s[ste] @ b1
+            labels = chan[ste]
+        else:
+            r0, r1 = reg.y[te] - X0[te] @ b0, reg.y[te] - X1[te] @ b1
+            labels = chan[te]
         for c in before:
-            m = ch_rows[te] == c
+            m = labels == c
             before[c] += float(r0[m] @ r0[m])
             after[c] += float(r1[m] @ r1[m])
             count[c] += int(m.sum())
     out = {}
     for c in before:
-        if count[c] == 0:
+        if count[c] == 0 or before[c] <= 0:
             continue
-        s = design.sigma.get(c, 1.0)
+        s = reg.d.sigma.get(c, 1.0)
         rb = s * math.sqrt(before[c] / count[c])
         ra = s * math.sqrt(after[c] / count[c])
-        out[c] = {"before": rb, "after": ra,
-                  "reduction": 1.0 - ra / rb if rb > 0 else 0.0,
+        out[c] = {"before": rb, "after": ra, "reduction": 1.0 - ra / rb,
                   "unit": channel_unit(c) if c != "touchdown_z" else "m"}
     return out
 
 
 def _refine(pool, base: Variant, windows, channels, edges, sigma, selected, cand_cols, infos,
-            ranking, nuis_cols, sens, geo, *, iterations: int):
+            start_values, nuis_cols, sens, geo, *, iterations: int):
     """Gauss–Newton on the replays for the selected effects' magnitude columns (and the
     calibration), on the stance-averaged rows: the sensitivities are recomputed at the
-    current values (a secant of 25 % of the current magnitude)."""
+    current values (a secant of 25 % of the current magnitude).
+
+    Returns:
+        (fitted parameters per effect, calibration θ, final predictions, log, the
+        sensitivities of the selected columns at the last iteration).
+    """
     cols = [c for s in selected for c in cand_cols[s]]
-    values = {}
-    for r in ranking:
-        if r["effect"] in selected:
-            for p, v in r["params"].items():
-                values[(r["effect"], p)] = float(v["value"])
+    values = {(c.candidate, c.param): float(start_values.get((c.candidate, c.param), c.neutral))
+              for c in cols}
     theta_nuis = {c.param: c.neutral for c in nuis_cols}
+    S_sel: dict[str, np.ndarray] = {}
     log = []
 
     def variant_with(vals, nuis):
@@ -1025,15 +1243,6 @@ def _refine(pool, base: Variant, windows, channels, edges, sigma, selected, cand
                 p[c.param] = vals[(s, c.param)]
             specs.append((info, p))
         return effect_variant(specs, Variant(theta={**base.theta, **nuis}))
-
-    def shifted_sensor(preds_cur, info, p):
-        from ..terrain.effects_library import SensorContext, apply_sensor_effects
-        out = []
-        for w, pr in zip(windows, preds_cur):
-            ctx = SensorContext(np.full(w.n, w.side, dtype=object), w.time,
-                                tuple(c[2:] for c in channels if c.startswith("q_")))
-            out.append(apply_sensor_effects({c: pr[c] for c in channels}, [(info, p)], ctx))
-        return out
 
     final = None
     for it in range(max(1, iterations)):
@@ -1056,15 +1265,11 @@ def _refine(pool, base: Variant, windows, channels, edges, sigma, selected, cand
         S = {}
         for c in cols:
             step, v = steps[c.key]
-            info = infos[c.candidate]
-            if info.kind == "sensor":
-                p = info.neutral_params()
-                for cc in cand_cols[c.candidate]:
-                    p[cc.param] = v[(c.candidate, cc.param)]
-                pr = shifted_sensor(cur_preds, info, p)
+            if infos[c.candidate].kind == "sensor":
+                S[c.key] = sens[c.key]       # a measurement map: its base sensitivity
             else:
-                pr = out[c.key]
-            S[c.key] = (_pred_cube(windows, pr, channels, edges) - Pc) / step
+                S[c.key] = (_pred_cube(windows, out[c.key], channels, edges) - Pc) / step
+        S_sel = {c.key: S[c.key] for c in cols}
         for c in nuis_cols:
             S[c.key] = sens[c.key]
         # geometry rows at the current values (linear in the geometry parameters)
@@ -1103,7 +1308,20 @@ def _refine(pool, base: Variant, windows, channels, edges, sigma, selected, cand
         for c in cand_cols[s]:
             p[c.param] = values[(s, c.param)]
         fitted[s] = p
-    return fitted, theta_nuis, final, log
+    return fitted, theta_nuis, final, log, S_sel
+
+
+def _replay_rmse(windows, before, after, channels) -> dict:
+    """RMSE of the raw samples (all stances) of the calibrated and the final model."""
+    out = {}
+    for c in channels:
+        e0 = np.concatenate([w.meas[c] - np.asarray(p[c], float) for w, p in zip(windows, before)])
+        e1 = np.concatenate([w.meas[c] - np.asarray(p[c], float) for w, p in zip(windows, after)])
+        r0 = float(np.sqrt(np.nanmean(e0 ** 2)))
+        r1 = float(np.sqrt(np.nanmean(e1 ** 2)))
+        out[c] = {"before": r0, "after": r1, "reduction": 1.0 - r1 / r0 if r0 > 0 else 0.0,
+                  "unit": channel_unit(c)}
+    return out
 
 
 def _recommend(theta: Mapping[str, float], fitted: Mapping[str, Mapping[str, float]]) -> dict:
@@ -1135,6 +1353,8 @@ def _figures(out: Path, loc_before, loc_after, ranking, channels, edges, R, R_af
                             else "(nothing added)")):
         T = np.zeros((len(channels), len(edges) - 1))
         for cl in loc["cells"]:
+            if cl.get("side", "all") != "all":
+                continue
             c = channels.index(cl["channel"])
             b = int(np.searchsorted(edges, cl["phase_lo"] + 1e-9) - 1)
             T[c, b] = cl["t"]
@@ -1204,14 +1424,16 @@ def _markdown(res: dict, figs: Sequence[Path]) -> str:
              "| parameter | before | calibrated | 95 % CI (Gauss–Newton) | 95 % CI (trial bootstrap) |",
              "|---|---|---|---|---|"]
     for k, val in cal["values"].items():
-        conv = math.degrees if k == "phi_s" else (lambda x: x)
-        name = "phi_s [deg]" if k == "phi_s" else k
+        conv = (math.degrees if k == "phi_s" else (lambda x: 1e3 * x) if k == "touchdown_depth"
+                else (lambda x: x))
+        name = {"phi_s": "phi_s [deg]", "touchdown_depth": "touchdown depth [mm]"}.get(k, k)
         gn = cal["ci_gn"].get(k, [None, None])
         bt = cal["ci_bootstrap"].get(k, [None, None])
 
         def fmt(iv):
             return "–" if iv[0] is None else f"[{conv(iv[0]):.4g}, {conv(iv[1]):.4g}]"
-        lines.append(f"| {name} | {conv(cal['initial'][k]):.4g} | {conv(val):.4g} | {fmt(gn)} | {fmt(bt)} |")
+        init = cal["initial"].get(k, 0.0)
+        lines.append(f"| {name} | {conv(init):.4g} | {conv(val):.4g} | {fmt(gn)} | {fmt(bt)} |")
     lines += ["", f"{cal['n_samples']} sinking samples from {cal['n_stances']} stances; "
               f"force residual {cal['rmse_before_N']:.2f} N → {cal['rmse_after_N']:.2f} N. "
               + cal.get("note", ""), "",
@@ -1219,7 +1441,7 @@ def _markdown(res: dict, figs: Sequence[Path]) -> str:
               "| rank | effect | kind | held-out error reduction | ΔAICc | inclusion | main coefficient | added |",
               "|---|---|---|---|---|---|---|---|"]
     for r in res["ranking"]:
-        main = r["main"]
+        main = _dominant(r)
         p = r["params"].get(main, {})
         val = r.get("refined_params", {}).get(main, p.get("value"))
         ci = (f" [{p.get('boot_ci_lo', float('nan')):.3g}, {p.get('boot_ci_hi', float('nan')):.3g}]"

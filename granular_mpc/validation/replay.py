@@ -49,6 +49,10 @@ from .prepare import (AXES, StanceWindow, channel_names, channel_unit, patch_poi
                       stance_windows, windows_frame)
 
 MODELS = ("granular", "rigid", "planar")
+#: replay parameters that are not terrain θ: ``touchdown_depth`` [m] is the depth of the
+#: measured touchdown point below the free surface (touchdown is detected one step late:
+#: every foot's surface is raised by it)
+REPLAY_PARAMS = ("touchdown_depth",)
 #: θ names of the terrain that the calibration may change (see diagnose)
 TERRAIN_THETA_CONFIG = {"zeta": "zeta", "phi_s": "phi_s_deg",
                         "bulldozing_length": "bulldozing_length",
@@ -115,6 +119,8 @@ class ReplayModel:
         names = self.terrain.param_names
         vec = self.terrain.param_values
         for k, v in theta.items():
+            if k in REPLAY_PARAMS:
+                continue
             if k not in names:
                 raise ConfigError(f"unknown terrain parameter {k!r} for the replay", key="params",
                                   allowed=", ".join(names))
@@ -198,10 +204,11 @@ def replay_granular(model: ReplayModel, w: StanceWindow, variant: Variant) -> di
     sy = theta[names.index("surface_slope_y")]
     pin.forwardKinematics(biped.model, d.pin, d.q, d.v)
     pin.updateFramePlacements(biped.model, d.pin)
+    dz = float(variant.theta.get("touchdown_depth", 0.0))
     for i, fi in enumerate(w.feet):
         buf = cd.feet[i]
         buf.params[:] = theta
-        buf.params[i_h] = fi.surface - sx * fi.point[0] - sy * fi.point[1]
+        buf.params[i_h] = fi.surface + dz - sx * fi.point[0] - sy * fi.point[1]
         if fi.in_contact:
             side = SIDES[i]
             pts = patch_points(biped, d.pin.oMf[biped.foot_frame[side]])
@@ -265,31 +272,41 @@ def _apply_sensors(out: dict, variant: Variant, w: StanceWindow, J) -> dict:
 
 def replay_rigid(model: ReplayModel, w: StanceWindow, variant: Variant | None = None, *,
                  stabilisation: float = 50.0) -> dict:
-    """Constrained replay with the stance contact point pinned (J₀ frozen at touchdown).
+    """Constrained replay under the paper's rigid-ground assumptions (no slip, no sinkage).
 
-    The initial velocity is projected onto J₀ v = 0 (a plastic impact); then, per plant
-    step, the KKT system [M −J₀ᵀ; J₀ 0][v̇; λ] = [Sτ − h; −k J₀ v] gives the acceleration
-    and the ground force λ (world axes, on the foot); semi-implicit Euler on the manifold.
+    The stance foot's contact point is pinned with its Jacobian J₀ frozen at touchdown;
+    the other foot, if it starts in contact, is pinned likewise (frozen J₁) until its
+    constraint force would pull (λ_z < 0: lift-off). The initial velocity is projected onto
+    the constraints (a plastic impact); then, per plant step, the KKT system
+    [M −Jᵀ; J 0][v̇; λ] = [Sτ − h; −k J v] gives the acceleration and the ground forces λ
+    (world axes, on the feet: the inverse dynamics of the constrained motion);
+    semi-implicit Euler on the manifold. The intrusion is 0 by assumption.
     """
     biped = model.biped
     mdl = biped.model
     data = mdl.createData()
-    side = w.side
     q = w.q0.copy()
     v = w.v0.copy()
     pin.forwardKinematics(mdl, data, q, v)
     pin.updateFramePlacements(mdl, data)
     pin.computeJointJacobians(mdl, data, q)
-    fid = biped.foot_frame[side]
-    JF = pin.getFrameJacobian(mdl, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-    p_c = patch_points(biped, data.oMf[fid]).mean(axis=0)
-    r = p_c - data.oMf[fid].translation
-    J0 = JF[0:3] - pin.skew(r) @ JF[3:6]
+
+    def point_jacobian(side):
+        fid = biped.foot_frame[side]
+        JF = pin.getFrameJacobian(mdl, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        p_c = patch_points(biped, data.oMf[fid]).mean(axis=0)
+        return JF[0:3] - pin.skew(p_c - data.oMf[fid].translation) @ JF[3:6]
+
+    Js = [point_jacobian(w.side)]
+    other = w.feet[1 - w.foot]
+    if other.in_contact:
+        Js.append(point_jacobian(SIDES[1 - w.foot]))
     nv = mdl.nv
     M = pin.crba(mdl, data, q)
     M = np.triu(M) + np.triu(M, 1).T
-    Minv_Jt = np.linalg.solve(M, J0.T)
-    v = v - Minv_Jt @ np.linalg.solve(J0 @ Minv_Jt, J0 @ v)
+    Jc = np.vstack(Js)
+    MiJt = np.linalg.solve(M, Jc.T)
+    v = v - MiJt @ np.linalg.lstsq(Jc @ MiJt, Jc @ v, rcond=None)[0]
     J = biped.joint_names
     n = w.n
     qa = np.full((n, len(J)), np.nan)
@@ -297,15 +314,14 @@ def replay_rigid(model: ReplayModel, w: StanceWindow, variant: Variant | None = 
     dt = model.dt
     iv, iq = biped.idx_v, biped.idx_q
     lo, hi = biped.position_limits
-    K = np.zeros((nv + 3, nv + 3))
-    K[nv:, :nv] = J0
-    K[:nv, nv:] = -J0.T
-    lam = np.zeros(3)
+    lam = np.zeros(3 * len(Js))
     diverged = False
     try:
         for k in range(n):
             tau_a = w.tau[k]
             for _ in range(model.steps_per_sample):
+                Jc = np.vstack(Js)
+                nc = Jc.shape[0]
                 M = pin.crba(mdl, data, q)
                 M = np.triu(M) + np.triu(M, 1).T
                 h = pin.nonLinearEffects(mdl, data, q, v)
@@ -314,16 +330,32 @@ def replay_rigid(model: ReplayModel, w: StanceWindow, variant: Variant | None = 
                 over = np.maximum(q[iq] - hi, 0.0) + np.minimum(q[iq] - lo, 0.0)
                 if over.any():
                     tau[iv] += np.where(over != 0.0, -500.0 * over - 5.0 * v[iv], 0.0)
+                K = np.zeros((nv + nc, nv + nc))
                 K[:nv, :nv] = M
-                rhs = np.concatenate([tau - h, -stabilisation * (J0 @ v)])
+                K[:nv, nv:] = -Jc.T
+                K[nv:, :nv] = Jc
+                rhs = np.concatenate([tau - h, -stabilisation * (Jc @ v)])
                 sol = np.linalg.solve(K, rhs)
                 a, lam = sol[:nv], sol[nv:]
+                if len(Js) > 1 and lam[5] < 0.0:       # the other foot lets go
+                    Js = Js[:1]
+                    continue_step = True
+                else:
+                    continue_step = False
+                if continue_step:
+                    Jc = Js[0]
+                    K = np.zeros((nv + 3, nv + 3))
+                    K[:nv, :nv] = M
+                    K[:nv, nv:] = -Jc.T
+                    K[nv:, :nv] = Jc
+                    sol = np.linalg.solve(K, np.concatenate([tau - h, -stabilisation * (Jc @ v)]))
+                    a, lam = sol[:nv], sol[nv:]
                 v = v + dt * a
                 q = pin.integrate(mdl, q, v * dt)
                 if not (np.all(np.isfinite(q)) and np.abs(v).max() < 200.0):
                     raise FloatingPointError
             qa[k] = q[iq]
-            lam_out[k] = lam
+            lam_out[k] = lam[0:3]
     except (FloatingPointError, np.linalg.LinAlgError):
         diverged = True
     out = {f"q_{j}": qa[:, c] for c, j in enumerate(J)}
@@ -363,95 +395,126 @@ def _roll_pitch(q: np.ndarray) -> tuple[float, float]:
     return roll, pitch
 
 
-def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None = None) -> dict:
-    """Replay on the paper's decoupled sagittal + frontal models (single stance).
+def _set_foot_state(buf, fi, vel) -> None:
+    st = buf.state
+    st[:, 0:3] = fi.e
+    st[:, 3:6] = fi.c0
+    st[:, 6] = 1.0
+    st[:, 7:10] = vel
+    st[:, 10] = fi.depth_max
+    st[:, 11] = fi.t_stance
 
-    The stance foot's kinematics for the terrain law: arc centre ``F`` = (x_s, y_s, z_s + R)
-    (C1 + R ẑ), pitch = θ_stance calf + mount pitch, velocity (ẋ_s, ẏ_s, ż_s), pitch rate
-    θ̇_calf. The law's force (F_x, F_z) drives the sagittal model, (F_y, F_z) the frontal
-    one; semi-implicit Euler at the plant step.
+
+def _planar_kin(kin, x, y, z, pitch, vx, vy, vz, wy, R) -> None:
+    c, s_ = math.cos(pitch), math.sin(pitch)
+    kin[0:3] = (x, y, z + R)
+    kin[3:12] = (c, 0.0, -s_, 0.0, 1.0, 0.0, s_, 0.0, c)     # R_y(pitch), column-major
+    kin[12:15] = (vx, vy, vz)
+    kin[15:18] = (0.0, wy, 0.0)
+
+
+def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None = None) -> dict:
+    """Replay on the paper's decoupled sagittal + frontal models.
+
+    Both feet use the terrain law of the 3-D model evaluated on their planar kinematics:
+    the stance foot at C1 = (x_s, y_s, z_s), the other (swing) foot at the planar models'
+    swing contact point, pitch = calf angle + mount pitch, velocities from the contact
+    Jacobians. The x and z forces act on the sagittal model, y and z on the frontal one
+    (decoupled: each plane sees the same vertical force); the swing foot's force enters
+    through the swing contact Jacobian. Semi-implicit Euler at the plant step.
     """
     from ..dynamics.planar import (actuated_from_frontal, actuated_from_sagittal,
-                                   forward_dynamics, frontal_from_actuated, frontal_torques,
-                                   sagittal_from_actuated, sagittal_torques)
+                                   contact_jacobian, coriolis_matrix, frontal_from_actuated,
+                                   frontal_torques, gravity_vector, mass_matrix, points,
+                                   sagittal_from_actuated, sagittal_torques,
+                                   swing_contact_jacobian)
 
     variant = variant or Variant()
     biped = model.biped
     side, i = w.side, w.foot
+    o = 1 - i
     sag, fro, sv, fv = _planar(biped, side)
     mdl = biped.model
     data = mdl.createData()
     q3, v3 = w.q0, w.v0
     pin.forwardKinematics(mdl, data, q3, v3)
     pin.updateFramePlacements(mdl, data)
-    fid = biped.foot_frame[side]
-    oMf = data.oMf[fid]
-    vel = pin.getFrameVelocity(mdl, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
     R_B = pin.Quaternion(q3[6], q3[3], q3[4], q3[5]).matrix()
     w_W = R_B @ v3[3:6]
     roll, pitch = _roll_pitch(q3)
     qa0, dqa0 = q3[biped.idx_q], v3[biped.idx_v]
     R = biped.config.foot.radius
-    c_W = oMf.translation - np.array([0.0, 0.0, R])
+    fid = biped.foot_frame[side]
+    vel = pin.getFrameVelocity(mdl, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+    c_W = data.oMf[fid].translation - np.array([0.0, 0.0, R])
     qs = np.concatenate([sagittal_from_actuated(sv, qa0, pitch), [c_W[0], c_W[2]]])
     dqs = np.concatenate([sagittal_from_actuated(sv, dqa0, w_W[1]), [vel.linear[0], vel.linear[2]]])
     qf = np.concatenate([frontal_from_actuated(fv, qa0, roll), [c_W[1], c_W[2]]])
     dqf = np.concatenate([frontal_from_actuated(fv, dqa0, w_W[0], velocity=True),
                           [vel.linear[1], vel.linear[2]]])
-    # the stance foot's contact law
+    fid_o = biped.foot_frame[SIDES[o]]
+    vel_o = pin.getFrameVelocity(mdl, data, fid_o, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
     cd = model.terrain.new_data(model.dt)
     theta = model.theta_vector(variant.theta)
     names = model.terrain.param_names
-    fi = w.feet[i]
-    buf = cd.feet[i]
-    buf.params[:] = theta
-    buf.params[names.index("surface_height")] = fi.surface
-    if fi.in_contact:
-        st = buf.state
-        st[:, 0:3] = fi.e
-        st[:, 3:6] = fi.c0
-        st[:, 6] = 1.0
-        st[:, 7:10] = vel.linear
-        st[:, 10] = fi.depth_max
-        st[:, 11] = fi.t_stance
+    dz = float(variant.theta.get("touchdown_depth", 0.0))
+    for k_, fi in ((i, w.feet[i]), (o, w.feet[o])):
+        cd.feet[k_].params[:] = theta
+        cd.feet[k_].params[names.index("surface_height")] = fi.surface + dz
+        if fi.in_contact:
+            _set_foot_state(cd.feet[k_], fi, vel.linear if k_ == i else vel_o.linear)
     J = biped.joint_names
     n = w.n
     qa = np.full((n, 6), np.nan)
     grf = np.full((n, 3), np.nan)
     intr = np.full((n, 3), np.nan)
     dt = model.dt
-    kin = buf.kin
     diverged = False
     f = np.zeros(3)
+    Bs = np.vstack([np.eye(5), np.zeros((2, 5))])
+    Bf = np.vstack([np.eye(3), np.zeros((2, 3))])
+
+    def foot_force(k_, x, y, z, ptch, vx, vy, vz, wy):
+        buf = cd.feet[k_]
+        if z - w.feet[k_].surface - dz > 0.005 and buf.state[:, 6].max() < 0.5:
+            cd.skip(k_)
+            return np.zeros(3)
+        _planar_kin(buf.kin, x, y, z, ptch, vx, vy, vz, wy, R)
+        cd.evaluate(k_)
+        return buf.force.sum(axis=0)
+
     try:
         for k in range(n):
             ts = sagittal_torques(sv, w.tau[k])
             tf = frontal_torques(fv, w.tau[k])
             for _ in range(model.steps_per_sample):
-                th = qs[3] + sv.foot_mount_pitch
-                c, s = math.cos(th), math.sin(th)
-                kin[0:3] = (qs[5], qf[3], qs[6] + R)
-                kin[3:12] = (c, 0.0, -s, 0.0, 1.0, 0.0, s, 0.0, c)   # Ry(θ), column-major
-                kin[12:15] = (dqs[5], dqf[3], dqs[6])
-                kin[15:18] = (0.0, dqs[3], 0.0)
-                if qs[6] + R - fi.surface > R + 0.005 and buf.state[:, 6].max() < 0.5:
-                    f = np.zeros(3)
-                    cd.skip(i)
-                else:
-                    cd.evaluate(i)
-                    f = buf.force.sum(axis=0)
-                dds = forward_dynamics(sag, qs, dqs, ts, (f[0], f[2]))
-                ddf = forward_dynamics(fro, qf, dqf, tf, (f[1], f[2]))
-                dqs = dqs + dt * dds
-                dqf = dqf + dt * ddf
+                # stance foot at C1
+                f = foot_force(i, qs[5], qf[3], qs[6], qs[3] + sv.foot_mount_pitch,
+                               dqs[5], dqf[3], dqs[6], dqs[3])
+                # swing foot at the planar swing contact point
+                ps, pf = points(sag, qs), points(fro, qf)
+                Jsw_s, Jsw_f = swing_contact_jacobian(sag, qs), swing_contact_jacobian(fro, qf)
+                vs, vf = Jsw_s @ dqs, Jsw_f @ dqf
+                f_o = foot_force(o, ps["contact_swing"][0], pf["contact_swing"][0],
+                                 ps["contact_swing"][1], qs[1] + sv.foot_mount_pitch,
+                                 vs[0], vf[0], vs[1], dqs[1])
+                gs = (Bs @ ts + contact_jacobian(sag, qs).T @ np.array([f[0], f[2]])
+                      + Jsw_s.T @ np.array([f_o[0], f_o[2]])
+                      - coriolis_matrix(sag, qs, dqs) @ dqs - gravity_vector(sag, qs))
+                gf = (Bf @ tf + contact_jacobian(fro, qf).T @ np.array([f[1], f[2]])
+                      + Jsw_f.T @ np.array([f_o[1], f_o[2]])
+                      - coriolis_matrix(fro, qf, dqf) @ dqf - gravity_vector(fro, qf))
+                dqs = dqs + dt * np.linalg.solve(mass_matrix(sag, qs), gs)
+                dqf = dqf + dt * np.linalg.solve(mass_matrix(fro, qf), gf)
                 qs = qs + dt * dqs
                 qf = qf + dt * dqf
-                buf.state[:] = buf.new_state
+                cd.commit()
                 if not (np.all(np.isfinite(qs)) and np.abs(dqs).max() < 200.0
                         and np.abs(dqf).max() < 200.0):
                     raise FloatingPointError
             qa[k] = actuated_from_sagittal(sv, qs[:5]) + actuated_from_frontal(fv, qf[:3])
             grf[k] = f
+            buf = cd.feet[i]
             intr[k] = buf.diag[:, 2:5].mean(axis=0) if buf.state[:, 6].max() > 0.5 else 0.0
     except (FloatingPointError, np.linalg.LinAlgError):
         diverged = True
@@ -626,8 +689,8 @@ def model_terrain(terrain: str | Mapping | Any = "dry_sand",
                 upd["phi_s_deg"] = math.degrees(float(v))
             elif k in TERRAIN_THETA_CONFIG:
                 upd[TERRAIN_THETA_CONFIG[k]] = float(v)
-            elif k in ("surface_slope_x", "surface_slope_y", "surface_height"):
-                continue        # geometry is per stance in the replay
+            elif k in ("surface_slope_x", "surface_slope_y", "surface_height") or k in REPLAY_PARAMS:
+                continue        # geometry is per stance in the replay; replay parameters
             else:
                 raise ConfigError(f"unknown calibrated parameter {k!r}", key="params",
                                   allowed=", ".join(TERRAIN_THETA_CONFIG))
@@ -756,7 +819,8 @@ def validate(data_dir: str | Path, out_dir: str | Path | None = None, *,
         raise GranularMpcError(f"{data_dir}: no complete stance phase to replay")
     J = list(ds.joint_names)
     channels = channel_names(J)
-    base = Variant(label=model)
+    base = Variant(theta={k: float(v) for k, v in cal.items() if k in REPLAY_PARAMS},
+                   label=model)
     variants = {model: base}
     if specs:
         if model == "rigid" and any(i.kind != "sensor" for i, _ in specs):

@@ -19,7 +19,9 @@ Effects dispatch by kind (:mod:`granular_mpc.terrain.effects_library`):
 the one that touched down last; ``none`` when no foot touches. A stance phase therefore
 runs from the foot's touchdown (it includes the loading and sinking while the other foot
 still carries weight) to the other foot's touchdown. ``grf_*`` and ``intrusion_*`` are
-that foot's force and intrusion; contacts shorter than 3 samples are ignored.
+that foot's force and intrusion; contacts shorter than 20 samples (40 ms at 500 Hz: a
+scuff of the swing foot) are ignored and a foot off the ground for at most 10 samples has
+bounced, not lifted off.
 
 **Noise model** (``noise=level``; level 1 = a realistic laboratory set-up, 0 = none):
 
@@ -69,8 +71,11 @@ NOISE_MODEL = {
     "base_v_cutoff_hz": 40.0, "base_w": 0.01, "intrusion": 1e-3,
 }
 
-#: contacts shorter than this many samples do not start a stance phase
-MIN_CONTACT_SAMPLES = 3
+#: contacts shorter than this many samples (a scuff of the swing foot) do not start a
+#: stance phase
+MIN_CONTACT_SAMPLES = 20
+#: a foot off the ground for at most this many samples has bounced, not lifted off
+MAX_BOUNCE_SAMPLES = 10
 
 
 @dataclass(frozen=True)
@@ -162,17 +167,27 @@ def build_plant_simulation(scenario: ScenarioConfig, effects: Sequence[Any] = ()
     return replace(sim, plant=plant)
 
 
+def _runs_of(c: np.ndarray) -> list[tuple[int, int]]:
+    m = np.concatenate(([False], c, [False])).astype(np.int8)
+    d = np.diff(m)
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
 def leading_foot_labels(left: np.ndarray, right: np.ndarray,
-                        min_samples: int = MIN_CONTACT_SAMPLES) -> np.ndarray:
+                        min_samples: int = MIN_CONTACT_SAMPLES,
+                        max_gap: int = MAX_BOUNCE_SAMPLES) -> np.ndarray:
     """Stance labels from per-foot contact flags: the foot in contact that touched down
-    last (``left`` / ``right``), ``none`` when neither touches. Contact runs shorter than
-    ``min_samples`` are ignored."""
+    last (``left`` / ``right``), ``none`` when neither touches. A foot that leaves the
+    ground for at most ``max_gap`` samples (a bounce) counts as in contact; contact runs
+    shorter than ``min_samples`` are ignored."""
     flags = []
     for c in (np.asarray(left) > 0.5, np.asarray(right) > 0.5):
         c = c.copy()
-        m = np.concatenate(([False], c, [False])).astype(np.int8)
-        d = np.diff(m)
-        for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+        gaps = _runs_of(~c)
+        for a, b in gaps:
+            if 0 < a and b < len(c) and b - a <= max_gap:
+                c[a:b] = True
+        for a, b in _runs_of(c):
             if b - a < min_samples:
                 c[a:b] = False
         flags.append(c)
@@ -503,11 +518,68 @@ def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Pat
             },
         },
     }
+    # a run that went wild before it counted as a fall can break the format's plausibility
+    # checks: cut such a trial 0.5 s before its first problem (or drop it)
+    from .dataformat import check_trials
+
+    suffix = ".csv" if format == "csv" else ".parquet"
+    for _ in range(3):
+        meta["trials"] = {n: {**e, "file": f"{n}{suffix}"} for n, e in entries.items()}
+        problems = check_trials(meta, trials)
+        if not problems:
+            break
+        by_trial: dict[str, list] = {}
+        for prob in problems:
+            by_trial.setdefault(Path(prob.file).stem, []).append(prob)
+        for name, probs in by_trial.items():
+            if name not in trials:
+                continue
+            df = trials[name]
+            rows = [p.row for p in probs if p.row is not None]
+            why = "; ".join(f"{p.column}: {p.message}" for p in probs)[:300]
+            keep = None
+            if rows:
+                t_cut = float(df["time"].iloc[min(max(min(rows) - 1, 0), len(df) - 1)]) - 0.5
+                keep = df[df["time"] <= t_cut].reset_index(drop=True)
+            if keep is None or len(keep) < 3 or _count_stances(keep["stance"].to_numpy()) < 1:
+                notes.append(f"{name}: dropped ({why})")
+                trials.pop(name)
+                entries.pop(name, None)
+                n_st.pop(name, None)
+            else:
+                notes.append(f"{name}: cut at t = {t_cut:.2f} s ({why})")
+                trials[name] = keep
+                n_st[name] = _count_stances(keep["stance"].to_numpy())
+        meta["trials"] = {n: {**e, "file": f"{n}{suffix}"} for n, e in entries.items()}
+        if not trials:
+            raise GranularMpcError("synth recorded no usable trial: " + "; ".join(notes))
     out = Path(out_dir)
     _clear_previous(out)
     write_dataset(out, meta, trials, format, overwrite=True)
     return SynthResult(out, {n: e["commanded_speed_mps"] for n, e in entries.items()}, n_st,
                        tuple(notes), _time.perf_counter() - t_wall)
+
+
+def noisy_copy(src: str | Path, dst: str | Path, noise: float | Mapping[str, float], *,
+               seed: int = 0, format: str = "parquet") -> Path:
+    """Write a copy of data set ``src`` with sensor noise added (same model as
+    :func:`synthesize`); ``generator.noise`` and ``generator.seed`` record it. Handy to
+    study one plant run at several noise levels."""
+    from .dataformat import load_dataset, write_dataset
+
+    ds = load_dataset(src)
+    level, white = normalise_noise(noise)
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 7919]))
+    trials = {n: add_noise(df, ds.joint_names, level, white, rng, ds.meta.sample_rate_hz)
+              for n, df in ds.trials.items()}
+    meta = ds.meta.model_dump(mode="json")
+    gen = meta.get("generator") or {}
+    gen["noise"] = {"level": level, **white}
+    gen.setdefault("settings", {})["noise_seed"] = int(seed)
+    meta["generator"] = gen
+    out = Path(dst)
+    _clear_previous(out)
+    return write_dataset(out, meta, trials, format, overwrite=True)
 
 
 def _clear_previous(folder: Path) -> None:
@@ -528,5 +600,6 @@ def _clear_previous(folder: Path) -> None:
         raise OutputError(f"cannot replace the data set in {folder}: {exc}") from None
 
 
-__all__ = ["synthesize", "SynthResult", "NOISE_MODEL", "add_noise", "leading_foot_labels",
+__all__ = ["synthesize", "SynthResult", "NOISE_MODEL", "add_noise", "noisy_copy",
+           "leading_foot_labels",
            "build_plant_simulation", "resolve_effects", "normalise_noise"]

@@ -1,0 +1,147 @@
+"""granular_mpc.validation.prepare / replay: stance windows, multiple-shooting replays of
+the granular, rigid and planar models, RMSE tables, report and figures, validate --effect."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from granular_mpc.exceptions import ConfigError
+from granular_mpc.robot.model import load_biped
+from granular_mpc.validation import load_dataset
+from granular_mpc.validation.prepare import channel_names, stance_windows
+from granular_mpc.validation.replay import (ReplayPool, Variant, build_replay_model,
+                                            effect_variant, load_fitted, model_terrain,
+                                            replay_granular, resolve_effect_specs, validate)
+
+
+@pytest.fixture(scope="module")
+def clean_windows(workbench_data):
+    ds = load_dataset(workbench_data("null", noisy=False))
+    biped = load_biped(ds.meta.robot, with_visuals=False)
+    rm = build_replay_model(biped, model_terrain("dry_sand"), sample_rate_hz=ds.meta.sample_rate_hz,
+                            terrain_effects=["cohesion"])
+    return ds, rm, stance_windows(ds, biped, contact_stiffness=rm.contact_stiffness)
+
+
+def test_stance_windows(clean_windows):
+    ds, rm, ws = clean_windows
+    complete = [p for p in ds.stance_phases(sides=("left", "right")) if p.complete]
+    assert len(ws) == len(complete) >= 15
+    for w in ws:
+        assert w.phase[0] >= 0 and w.phase[-1] == pytest.approx(100.0) and np.all(np.diff(w.phase) > 0)
+        assert w.tau.shape == (w.n, 6)
+        lead, trail = w.feet[w.foot], w.feet[1 - w.foot]
+        # touchdown: the stance foot starts just above its own surface, at the origin
+        assert not lead.in_contact and -3e-3 < -lead.depth <= 0.0 + 1e-12
+        assert abs(lead.surface) < 1e-9 and np.linalg.norm(lead.point[:2]) < 1e-9
+        # the other foot carries the robot, buried as its last stance left it
+        assert trail.in_contact and trail.force[2] > 20.0 and 0.01 < trail.depth < 0.06
+        np.testing.assert_allclose(trail.e.sum(axis=0) * -rm.contact_stiffness, trail.force)
+
+
+def test_noise_free_replay_reproduces_the_plant(clean_windows):
+    """Replaying the plant's own data with the same model: the joint angles stay within
+    ≈ 1° and the sinkage within ≈ 0.5 mm over a stance (multiple shooting, one window)."""
+    ds, rm, ws = clean_windows
+    err = {c: [] for c in ("q_left_knee", "q_right_knee", "grf_z", "intrusion_z")}
+    for w in ws:
+        out = replay_granular(rm, w, Variant(theta={"touchdown_depth": 2e-4}))
+        assert not out["diverged"]
+        for c in err:
+            err[c].append(out[c] - w.meas[c])
+    rms = {c: float(np.sqrt(np.mean(np.concatenate(v) ** 2))) for c, v in err.items()}
+    assert rms["q_left_knee"] < 0.02 and rms["q_right_knee"] < 0.02
+    assert rms["intrusion_z"] < 0.6e-3
+    assert rms["grf_z"] < 8.0
+
+
+def test_variants_change_the_replay(clean_windows):
+    ds, rm, ws = clean_windows
+    w = ws[3]
+    base = replay_granular(rm, w, Variant())
+    soft = replay_granular(rm, w, Variant(theta={"zeta": 0.9}))
+    assert soft["intrusion_z"][-1] > base["intrusion_z"][-1] + 3e-3        # softer: deeper
+    coh = replay_granular(rm, w, effect_variant([(*resolve_effect_specs(["cohesion"])[0],)]))
+    assert np.max(np.abs(coh["q_right_knee"] - base["q_right_knee"])) > 0.01
+    with pytest.raises(ConfigError, match="unknown terrain parameter"):
+        replay_granular(rm, w, Variant(theta={"zetta": 1.0}))
+
+
+def test_pool_matches_serial(clean_windows):
+    ds, rm, ws = clean_windows
+    few = ws[:6]
+    with ReplayPool(rm, few, workers=2) as pool:
+        par = pool.run({"a": Variant()})["a"]
+    ser = [replay_granular(rm, w, Variant()) for w in few]
+    for p, s_ in zip(par, ser):
+        np.testing.assert_allclose(p["q_left_knee"], s_["q_left_knee"], rtol=0, atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def reports(workbench_data, tmp_path_factory):
+    data = workbench_data("cohesion")
+    root = tmp_path_factory.mktemp("validate")
+    out = {m: validate(data, root / m, model=m, n_boot=200) for m in ("granular", "rigid", "planar")}
+    out["added"] = validate(data, root / "added", effects=["cohesion:suction=3000"], n_boot=200)
+    return root, out
+
+
+def test_report_tables_and_figures(reports):
+    root, rep = reports
+    r = rep["granular"]
+    j = json.loads((root / "granular" / "report.json").read_text())
+    chans = channel_names(load_biped("yobogo10s", with_visuals=False).joint_names)
+    assert j["channels"] == chans and j["n_stances"] == r.report["n_stances"] > 10
+    tables = j["models"]["granular"]
+    by_sp = tables["by_speed_phase"]
+    assert {row["phase_bin"] for row in by_sp} == {f"{10 * k}-{10 * (k + 1)}" for k in range(10)}
+    assert sorted({row["commanded_speed_mps"] for row in by_sp}) == [0.15, 0.25, 0.35]
+    overall = {row["channel"]: row for row in tables["overall"]}
+    for c in chans:                      # intervals from resampling (stances: 1 trial/speed)
+        row = overall[c]
+        assert row["ci_lo"] <= row["rmse"] <= row["ci_hi"]
+    assert j["interval"]["unit"] == "stance"
+    for f in ("bands.png", "rmse_vs_speed.png", "heatmap_granular.png"):
+        assert (root / "granular" / f).stat().st_size > 10_000
+
+
+def test_models_compare_as_the_paper_says(reports):
+    """Rigid ground (no sinkage, pinned foot) predicts no intrusion and larger GRF errors
+    than the granular model on sand data; all three models replay every stance."""
+    _, rep = reports
+    g, rg, pl = (rep[m].report["overall_rmse"][m] for m in ("granular", "rigid", "planar"))
+    assert rg["intrusion_z"] > 5 * g["intrusion_z"]
+    assert rg["grf_z"] > g["grf_z"]
+    for m in ("granular", "rigid", "planar"):
+        assert rep[m].report["diverged_stances"][m] == 0
+        assert all(math.isfinite(v) for v in rep[m].report["overall_rmse"][m].values())
+    assert pl["intrusion_z"] < rg["intrusion_z"]
+
+
+def test_adding_the_true_effect_lowers_the_error(reports):
+    _, rep = reports
+    ba = rep["added"].report["before_after"]
+    for c in ("q_left_knee", "q_right_knee", "q_left_hip_pitch"):
+        assert ba[c]["after"] < 0.7 * ba[c]["before"], (c, ba[c])
+    assert set(rep["added"].tables) == {"granular", "granular+effects"}
+
+
+def test_fitted_parameters_from_a_diagnosis(tmp_path):
+    diag = {"calibration": {"values": {"zeta": 1.5, "touchdown_depth": 2e-4}},
+            "fitted_effects": {"cohesion": {"suction": 2500.0, "release": 0.004}}}
+    p = tmp_path / "diagnosis.json"
+    p.write_text(json.dumps(diag))
+    cal, eff = load_fitted(tmp_path)
+    assert cal == {"zeta": 1.5, "touchdown_depth": 2e-4}
+    specs = resolve_effect_specs(["cohesion", "elastic_unloading:pressure=10"], eff)
+    assert specs[0][1] == {"suction": 2500.0, "release": 0.004}       # fitted values
+    assert specs[1][1]["pressure"] == 10.0                             # explicit wins
+    cfg = model_terrain("dry_sand", cal)
+    assert cfg.zeta == 1.5
+    with pytest.raises(ConfigError, match="unknown calibrated parameter"):
+        model_terrain("dry_sand", {"zetta": 1.0})
+    with pytest.raises(ConfigError):
+        validate(tmp_path, None, model="soft")
