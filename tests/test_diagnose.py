@@ -42,15 +42,18 @@ def _cols(name, key):
     return [Column(name, key.split(".")[1], 0.0, 1.0, -10.0, 10.0)]
 
 
-def test_regression_ranks_a_real_column_and_rejects_a_null_one():
-    reg = _design()
+def _two_candidate_stats(reg):
+    """Candidate statistics of cohesion (the design's real column) and inertial drag."""
     cand_keys = {"cohesion": ["cohesion.suction"], "inertial_drag": ["inertial_drag.c_d"]}
     cand_cols = {"cohesion": _cols("cohesion", "cohesion.suction"),
                  "inertial_drag": _cols("inertial_drag", "inertial_drag.c_d")}
     infos = {n: effect_info(n) for n in cand_keys}
-    rows = _candidate_stats(reg, ["calibration.zeta"], cand_keys, cand_cols, infos,
+    return _candidate_stats(reg, ["calibration.zeta"], cand_keys, cand_cols, infos,
                             n_boot=50, seed=0, max_effects=1)
-    top, other = rows
+
+
+def test_regression_ranks_a_real_column_and_rejects_a_null_one():
+    top, other = _two_candidate_stats(_design())
     assert top["effect"] == "cohesion" and top["significant"]
     assert top["params"]["suction"]["value"] == pytest.approx(0.5, abs=0.05)
     lo, hi = top["params"]["suction"]["boot_ci_lo"], top["params"]["suction"]["boot_ci_hi"]
@@ -61,13 +64,7 @@ def test_regression_ranks_a_real_column_and_rejects_a_null_one():
 
 
 def test_null_design_adds_nothing():
-    reg = _design(beta=0.0, seed=3)
-    cand_keys = {"cohesion": ["cohesion.suction"], "inertial_drag": ["inertial_drag.c_d"]}
-    cand_cols = {"cohesion": _cols("cohesion", "cohesion.suction"),
-                 "inertial_drag": _cols("inertial_drag", "inertial_drag.c_d")}
-    infos = {n: effect_info(n) for n in cand_keys}
-    rows = _candidate_stats(reg, ["calibration.zeta"], cand_keys, cand_cols, infos,
-                            n_boot=50, seed=0, max_effects=1)
+    rows = _two_candidate_stats(_design(beta=0.0, seed=3))
     assert not any(r["significant"] for r in rows)
 
 

@@ -212,14 +212,7 @@ def replay_granular(model: ReplayModel, w: StanceWindow, variant: Variant) -> di
         if fi.in_contact:
             side = SIDES[i]
             pts = patch_points(biped, d.pin.oMf[biped.foot_frame[side]])
-            vel = _patch_velocity(biped, d.pin, side, pts)
-            st = buf.state
-            st[:, 0:3] = fi.e
-            st[:, 3:6] = fi.c0
-            st[:, 6] = 1.0
-            st[:, 7:10] = vel
-            st[:, 10] = fi.depth_max
-            st[:, 11] = fi.t_stance
+            _set_foot_state(buf, fi, _patch_velocity(biped, d.pin, side, pts))
     J = biped.joint_names
     n = w.n
     qa = np.full((n, len(J)), np.nan)
