@@ -12,6 +12,8 @@ Where the time goes (cProfile, sand, 0.2 m/s): the WBC tick ≈ 45 % (Pinocchio 
 QP assembly in NumPy, ~0.7 ms), the plant ≈ 25 % (2000 steps of ~65 µs), logging ≈ 15 %
 (one PlantRecorder row per WBC tick), the MPC ≈ 10 % (40 ticks of ~2.5 ms). One BLAS
 thread: the matrices are tiny and threading costs more than it saves (MPC tick 16 → 2.4 ms).
+``proxsuite_build`` names the ProxSuite binding in use: ``GRANULAR_MPC_PROXSUITE=generic``
+selects the bit-reproducible build (≈ 30 % slower MPC solves, docs/user-guide.md).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = ap.parse_args(argv)
 
+    from granular_mpc.control.solvers.proxqp import proxsuite_build
     from granular_mpc.runner import build_simulation, closed_loop
     from granular_mpc.scenario import load_scenario
 
@@ -62,6 +65,7 @@ def main(argv=None) -> dict:
         "realtime_factor": sim_time / wall,
         "qp_failures": float(state.controller.qp_failures),
         "fell": float(state.fall is not None),
+        "proxsuite_build": proxsuite_build(),
     }
     emit(figures, args.json, {"_median": "ms", "_p99": "ms", "_hz": "Hz"})
     return figures

@@ -74,3 +74,52 @@ def test_non_finite_data_is_a_status():
 def test_size_mismatch_raises_solver_error():
     with pytest.raises(SolverError, match="differs"):
         ProxQPSolver(3, 0, 0).solve(QPProblem(np.eye(2), np.zeros(2)))
+
+
+_REPRO = r"""
+import glob, sys
+import numpy as np, pandas as pd
+from granular_mpc.control.solvers.proxqp import proxsuite_build
+from granular_mpc.runner import run_scenario
+from granular_mpc.scenario import load_scenario
+
+def log(out):
+    return pd.concat([pd.read_parquet(f) for f in sorted(glob.glob(out + "/log/part-*.parquet"))])
+
+logs = []
+for i in range(2):
+    out = f"{sys.argv[1]}/run{i}"
+    run_scenario(load_scenario("sand_walk", ["sim.duration=1.2"]), out, progress=False)
+    logs.append(log(out))
+a, b = logs
+cols = [c for c in a.columns if a[c].dtype.kind == "f" and not c.endswith("_ms")]
+print(proxsuite_build(), len(a), int((a[cols].values != b[cols].values).any(axis=1).sum()))
+"""
+
+
+@pytest.mark.slow
+def test_generic_build_makes_closed_loop_runs_bit_reproducible(tmp_path):
+    """With GRANULAR_MPC_PROXSUITE=generic two runs of one scenario in one process give the
+    same log bit for bit (the AVX2 build parts at ~1e-10 after ~0.5 s: heap alignment)."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, GRANULAR_MPC_PROXSUITE="generic", MPLBACKEND="Agg")
+    proc = subprocess.run([sys.executable, "-c", _REPRO, str(tmp_path)], env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    build, rows, differing = proc.stdout.split()[-3:]
+    assert build == "proxsuite_pywrap" and int(rows) > 500
+    assert int(differing) == 0
+
+
+def test_unknown_proxsuite_build_is_a_clear_error(monkeypatch):
+    import sys
+
+    from granular_mpc.control.solvers import proxqp
+
+    monkeypatch.setenv("GRANULAR_MPC_PROXSUITE", "avx9000")
+    monkeypatch.delitem(sys.modules, "proxsuite", raising=False)
+    with pytest.raises(SolverError, match="GRANULAR_MPC_PROXSUITE.*allowed: native, generic"):
+        proxqp.load_proxsuite()

@@ -21,6 +21,56 @@ import numpy as np
 
 from ...exceptions import SolverError
 
+#: ProxSuite builds: ``native`` = ProxSuite's own choice (AVX2 / AVX-512 where the CPU has
+#: them; the default, fastest), ``generic`` = the SSE2 build (bit-reproducible, ~30 % slower
+#: MPC solves). Chosen with the environment variable GRANULAR_MPC_PROXSUITE.
+PROXSUITE_BUILDS = ("native", "generic")
+
+
+def load_proxsuite():
+    """The ProxSuite binding module, loaded once per process.
+
+    ProxSuite's vectorised (AVX2) build gives results that depend on the heap alignment of
+    its workspace: the same QP solved twice by fresh solver objects can differ by ~1e-10,
+    and the closed loop amplifies that until two runs of one scenario part after ~0.5 s
+    (statistically the same, not bit for bit). The generic build is deterministic:
+    ``GRANULAR_MPC_PROXSUITE=generic`` makes closed-loop runs bit-reproducible. The builds
+    cannot be mixed in one process (nanobind aborts), so the choice is made at the first
+    import; if ``proxsuite`` was already imported, that build is used.
+    """
+    import importlib
+    import importlib.util
+    import os
+    import sys
+
+    build = os.environ.get("GRANULAR_MPC_PROXSUITE", "native")
+    if build not in PROXSUITE_BUILDS:
+        raise SolverError(f"environment variable GRANULAR_MPC_PROXSUITE = {build!r} is not a "
+                          f"ProxSuite build; allowed: {', '.join(PROXSUITE_BUILDS)}")
+    pkg = sys.modules.get("proxsuite")
+    if pkg is None and build == "generic":
+        spec = importlib.util.find_spec("proxsuite")
+        if spec is not None and spec.submodule_search_locations:
+            pkg = importlib.util.module_from_spec(spec)
+            sys.modules["proxsuite"] = pkg
+            try:
+                sub = importlib.import_module("proxsuite.proxsuite_pywrap")
+            except ImportError:
+                del sys.modules["proxsuite"]
+                pkg = None
+            else:
+                pkg._submodule = sub
+                pkg.__getattr__ = lambda name: getattr(sub, name)
+                pkg.__dir__ = lambda: dir(sub)
+    if pkg is None:
+        pkg = importlib.import_module("proxsuite")
+    return pkg
+
+
+def proxsuite_build() -> str:
+    """Name of the loaded ProxSuite binding (e.g. ``proxsuite_pywrap_avx2``)."""
+    return load_proxsuite()._submodule.__name__.rsplit(".", 1)[-1]
+
 
 class QPStatus(enum.Enum):
     """Outcome of one solve."""
@@ -122,9 +172,7 @@ class ProxQPSolver:
     _warm: bool = field(default=False, repr=False)
 
     def __post_init__(self) -> None:
-        import proxsuite
-
-        self._px = proxsuite
+        self._px = load_proxsuite()
         self._reset()
 
     def solve(self, p: QPProblem) -> QPSolution:
