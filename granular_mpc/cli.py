@@ -14,8 +14,8 @@ prints **one** message naming the problem on stderr and exits non-zero, without 
 traceback unless ``--debug``.
 
 Exit codes: 0 done (a run that fell is done: the fall is its result); 1 a run ended early
-(plant diverged, controller error) or an unexpected error; 2 bad input; 3 a command that
-is not available yet; 130 interrupted (Ctrl-C). See docs/user-guide.md.
+(plant diverged, controller error) or an unexpected error; 2 bad input; 130 interrupted
+(Ctrl-C). See docs/user-guide.md.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ import typer
 
 from .exceptions import ConfigError, GranularMpcError, OutputError
 
-EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_UNAVAILABLE, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 app = typer.Typer(
     name="granular-mpc",
@@ -275,25 +275,6 @@ def bench(
 
 
 # ----------------------------------------------------------------------------- workbench
-def _workbench(module: str, func: str, command: str):
-    """``granular_mpc.validation.<module>.<func>``, or exit 3 with a clear message."""
-    import importlib
-
-    try:
-        mod = importlib.import_module(f"granular_mpc.validation.{module}")
-    except ModuleNotFoundError as exc:
-        if exc.name and exc.name.startswith("granular_mpc"):
-            mod = None
-        else:
-            raise
-    fn = getattr(mod, func, None) if mod is not None else None
-    if fn is None:
-        _err(f"error: 'granular-mpc {command}' is not available yet "
-             f"(granular_mpc.validation.{module}.{func} is not implemented in this version)")
-        raise typer.Exit(EXIT_UNAVAILABLE)
-    return fn
-
-
 def _parse_noise(items: list[str]) -> dict[str, float]:
     out: dict[str, float] = {}
     for item in items:
@@ -371,7 +352,7 @@ def synth(
     """Generate a measurement data set with the plant (+ hidden effects, sensor noise)."""
     from .scenario import find_scenario, load_scenario
 
-    fn = _workbench("synth", "synthesize", "synth")
+    from .validation.synth import synthesize as fn
     with _errors(debug):
         _load_effect_files(effect_file)
         scenario = load_scenario(config, set_ or [])
@@ -397,7 +378,7 @@ def validate(
     debug: DebugOpt = False,
 ) -> None:
     """Compare the model with measurements: DIR/report.json (RMSE by channel, phase, speed)."""
-    fn = _workbench("replay", "validate", "validate")
+    from .validation.replay import validate as fn
     with _errors(debug):
         if model not in ("granular", "rigid", "planar"):
             raise ConfigError(f"unknown model {model!r}", key="--model",
@@ -426,7 +407,7 @@ def diagnose(
     debug: DebugOpt = False,
 ) -> None:
     """Calibrate the model, then find which physical effect it misses: DIR/diagnosis.json."""
-    fn = _workbench("diagnose", "diagnose", "diagnose")
+    from .validation.diagnose import diagnose as fn
     with _errors(debug):
         _load_effect_files(effect_file)
         if candidate:

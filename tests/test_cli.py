@@ -197,24 +197,6 @@ def test_bad_input_in_a_real_process_has_no_traceback_unless_debug(tmp_path):
     assert debug.returncode == 2 and "Traceback" in debug.stderr
 
 
-def test_workbench_commands_say_when_they_are_not_available(tmp_path):
-    import importlib.util
-
-    cases = [("synth", ["synth", RIGID, "--out", tmp_path / "ds"], "granular_mpc.validation.synth"),
-             ("validate", ["validate", tmp_path, "--out", tmp_path / "rep"], "granular_mpc.validation.replay"),
-             ("diagnose", ["diagnose", tmp_path, "--out", tmp_path / "dia"], "granular_mpc.validation.diagnose")]
-    checked = 0
-    for name, args, module in cases:
-        if importlib.util.find_spec(module) is not None:
-            continue          # built by now: its own tests cover it
-        res = invoke(*args)
-        assert res.exit_code == 3, res.output
-        assert "not available yet" in res.stderr and "Traceback" not in res.output
-        checked += 1
-    if checked == 0:
-        pytest.skip("synth, validate and diagnose are all implemented")
-
-
 def test_bench_runs_scripts_and_prints_their_lines(tmp_path):
     bench = tmp_path / "bench"
     bench.mkdir()
