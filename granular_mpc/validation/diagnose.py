@@ -1424,8 +1424,9 @@ def _markdown(res: dict, figs: Sequence[Path]) -> str:
     lines = [f"# Diagnosis of `{res['data']}`", "",
              f"**Verdict ({v['status'].replace('_', ' ')}):** {v['text']}", "",
              "## Calibration (own parameters)", "",
-             "| parameter | before | calibrated | 95 % CI (Gauss–Newton) | 95 % CI (trial bootstrap) |",
-             "|---|---|---|---|---|"]
+             "| parameter | before | equation error | 95 % CI (Gauss–Newton) "
+             "| 95 % CI (trial bootstrap) | after replay refit |",
+             "|---|---|---|---|---|---|"]
     for k, val in cal["values"].items():
         conv = (math.degrees if k == "phi_s" else (lambda x: 1e3 * x) if k == "touchdown_depth"
                 else (lambda x: x))
@@ -1436,7 +1437,10 @@ def _markdown(res: dict, figs: Sequence[Path]) -> str:
         def fmt(iv):
             return "–" if iv[0] is None else f"[{conv(iv[0]):.4g}, {conv(iv[1]):.4g}]"
         init = cal["initial"].get(k, 0.0)
-        lines.append(f"| {name} | {conv(init):.4g} | {conv(val):.4g} | {fmt(gn)} | {fmt(bt)} |")
+        eq = cal.get("equation_error_values", {}).get(k)
+        eq_txt = "–" if eq is None else f"{conv(eq):.4g}"
+        lines.append(f"| {name} | {conv(init):.4g} | {eq_txt} | {fmt(gn)} | {fmt(bt)} "
+                     f"| {conv(val):.4g} |")
     lines += ["", f"{cal['n_samples']} sinking samples from {cal['n_stances']} stances; "
               f"force residual {cal['rmse_before_N']:.2f} N → {cal['rmse_after_N']:.2f} N. "
               + cal.get("note", ""), "",
