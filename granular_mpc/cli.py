@@ -351,16 +351,17 @@ def synth(
 ) -> None:
     """Generate a measurement data set with the plant (+ hidden effects, sensor noise)."""
     from .scenario import find_scenario, load_scenario
+    from .validation.synth import synthesize
 
-    from .validation.synth import synthesize as fn
     with _errors(debug):
         _load_effect_files(effect_file)
         scenario = load_scenario(config, set_ or [])
-        res = fn(scenario, out, effects=_effects(effect or []), noise=_parse_noise(noise or []),
-                 seed=scenario.sim.seed if seed is None else seed,
-                 scenario_path=find_scenario(config), speeds=_speeds(speeds), steps=steps,
-                 duration=duration, repeats=repeats, format=fmt)
-        for note in getattr(res, "notes", ()):
+        res = synthesize(scenario, out, effects=_effects(effect or []),
+                         noise=_parse_noise(noise or []),
+                         seed=scenario.sim.seed if seed is None else seed,
+                         scenario_path=find_scenario(config), speeds=_speeds(speeds),
+                         steps=steps, duration=duration, repeats=repeats, format=fmt)
+        for note in res.notes:
             _err(f"note: {note}")
         print(f"wrote {out}")
 
@@ -378,20 +379,19 @@ def validate(
     debug: DebugOpt = False,
 ) -> None:
     """Compare the model with measurements: DIR/report.json (RMSE by channel, phase, speed)."""
-    from .validation.replay import validate as fn
+    from .validation.replay import validate as run_validate
+
     with _errors(debug):
         if model not in ("granular", "rigid", "planar"):
             raise ConfigError(f"unknown model {model!r}", key="--model",
                               allowed="granular, rigid, planar")
         _load_effect_files(effect_file)
-        rep = fn(data_dir, out, model=model, effects=_effects(effect or []), params=params,
-                 terrain=terrain, workers=workers)
-        ba = getattr(rep, "report", {}).get("before_after")
-        if ba:
-            for ch, d in ba.items():
-                if d.get("change_pct") is not None:
-                    print(f"{ch}: RMSE {d['before']:.4g} -> {d['after']:.4g} "
-                          f"({d['change_pct']:+.0f} %)")
+        rep = run_validate(data_dir, out, model=model, effects=_effects(effect or []),
+                           params=params, terrain=terrain, workers=workers)
+        for ch, d in rep.report.get("before_after", {}).items():
+            if d["change_pct"] is not None:
+                print(f"{ch}: RMSE {d['before']:.4g} -> {d['after']:.4g} "
+                      f"({d['change_pct']:+.0f} %)")
         print(f"wrote {out / 'report.json'}")
 
 
@@ -407,17 +407,16 @@ def diagnose(
     debug: DebugOpt = False,
 ) -> None:
     """Calibrate the model, then find which physical effect it misses: DIR/diagnosis.json."""
-    from .validation.diagnose import diagnose as fn
+    from .validation.diagnose import diagnose as run_diagnose
+
     with _errors(debug):
         _load_effect_files(effect_file)
         if candidate:
             for c in candidate:
                 _effects([c])
-        res = fn(data_dir, out, candidates=candidate or None, seed=seed, terrain=terrain,
-                 workers=workers)
-        verdict = getattr(res, "result", {}).get("verdict", {})
-        if verdict:
-            print(verdict.get("text", ""))
+        res = run_diagnose(data_dir, out, candidates=candidate or None, seed=seed,
+                           terrain=terrain, workers=workers)
+        print(res.verdict["text"])
         print(f"wrote {out / 'diagnosis.json'}")
 
 

@@ -55,6 +55,7 @@ import pinocchio as pin
 from . import __version__
 from .config import ScenarioConfig, load_terrain
 from .exceptions import GranularMpcError, OutputError, PlantDivergedError
+from .output import json_safe, make_output_folder
 from .robot.model import SIDES, Biped
 from .scenario import resolved_dict
 
@@ -452,22 +453,6 @@ def _closed_loop(sim: Simulation, state: LoopState | None, PlantRecorder) -> Ite
 # ======================================================================================
 
 
-def _finite(x: Any) -> Any:
-    """JSON-friendly: NaN/inf → None, numpy scalars → Python."""
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    if isinstance(x, (np.floating, float)):
-        x = float(x)
-        return x if math.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
-
-
 def _stats_ms(values: Sequence[float]) -> dict:
     if len(values) == 0:
         return {"median": None, "p99": None, "n": 0}
@@ -594,7 +579,7 @@ def summarize(log, sim: Simulation, state: LoopState, *, wall_time_s: float,
         out["log_rows"] = 0 if log is None else int(len(log))
         notes["log"] = "fewer than 2 log rows: no metrics"
         out["notes"] = notes
-        return _finite(out)
+        return json_safe(out)
     out["log_rows"] = int(len(log))
     out["log_rate_hz"] = float(sc.log_rate_hz)
     t = log["time"].to_numpy(dtype=float)
@@ -611,7 +596,7 @@ def summarize(log, sim: Simulation, state: LoopState, *, wall_time_s: float,
         out["window_s"] = [float(t[0]), float(t[-1])]
         out["window_note"] = "whole run (drop test)"
         out["notes"] = notes
-        return _finite(out)
+        return json_safe(out)
     ramp = cd.ramp.ramp_duration if cd is not None else 0.0
     a, b, note = averaging_window(sim, float(t[0]), float(t[-1]), ramp)
     out["window_s"] = [a, b]
@@ -638,7 +623,7 @@ def summarize(log, sim: Simulation, state: LoopState, *, wall_time_s: float,
             out["cot_decoupled"] = safe("cot_decoupled", dec)
     out.update(safe("stances", lambda: stance_metrics(log, a), {}))
     out["notes"] = notes
-    return _finite(out)
+    return json_safe(out)
 
 
 # ======================================================================================
@@ -699,17 +684,7 @@ def prepare_out_dir(out_dir: str | Path) -> Path:
     Raises:
         OutputError: the folder cannot be created or written.
     """
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"output folder {out} exists and is not a folder")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / ".granular-mpc-write-test"
-        probe.write_text("")
-        probe.unlink()
-    except OSError as exc:
-        raise OutputError(f"cannot write the output folder {out}: "
-                          f"{exc.strerror or exc}") from None
+    out = make_output_folder(out_dir)
     stale = [out / SUMMARY_FILE, out / RESOLVED_FILE, out / HTML_FILE]
     stale += list((out / LOG_DIR).glob("part-*.parquet")) + list((out / LOG_DIR).glob("part-*.tmp"))
     stale += list((out / PLOTS_DIR).glob("*.png"))
@@ -1135,13 +1110,8 @@ def run_sweep(tasks: Sequence[Any], out_dir: str | Path, *, workers: int | None 
     if backend not in ("local", "ray"):
         raise ConfigError(f"unknown backend {backend!r}", key="--backend", value=backend,
                           allowed="local, ray")
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"output folder {out} exists and is not a folder")
-    try:
-        (out / "runs").mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"cannot write the output folder {out}: {exc.strerror or exc}") from None
+    out = make_output_folder(out_dir)
+    (out / "runs").mkdir(exist_ok=True)
     payloads = [{"name": t.name, "params": t.params, "scenario": resolved_dict(t.scenario),
                  "out_dir": str((out / "runs" / t.name).resolve())} for t in tasks]
     n_workers = max(1, min(workers or os.cpu_count() or 1, len(payloads)))

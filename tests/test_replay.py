@@ -145,3 +145,24 @@ def test_fitted_parameters_from_a_diagnosis(tmp_path):
         model_terrain("dry_sand", {"zetta": 1.0})
     with pytest.raises(ConfigError):
         validate(tmp_path, None, model="soft")
+
+
+@pytest.mark.parametrize("command", ["validate", "diagnose"])
+def test_unwritable_report_folder_fails_before_any_replay(workbench_data, tmp_path,
+                                                          monkeypatch, command):
+    """A report folder that cannot be written is an OutputError naming it, raised before
+    the replays run (a bad --out must not cost the computation)."""
+    from granular_mpc.exceptions import OutputError
+    from granular_mpc.validation import diagnose as diagnose_module
+    from granular_mpc.validation import replay as replay_module
+
+    def no_replays(*args, **kwargs):
+        raise AssertionError("replays started before the output folder was checked")
+
+    monkeypatch.setattr(replay_module, "ReplayPool", no_replays)
+    monkeypatch.setattr(diagnose_module, "ReplayPool", no_replays)
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    fn = validate if command == "validate" else diagnose_module.diagnose
+    with pytest.raises(OutputError, match="a_file exists and is not a folder"):
+        fn(workbench_data("null"), blocker)

@@ -46,10 +46,11 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..config import SimConfig
-from ..exceptions import GranularMpcError, OutputError
+from ..exceptions import GranularMpcError
+from ..output import json_safe, make_output_folder
 from ..terrain.effects_library import EffectInfo, all_effects, effect_info
 from .prepare import StanceWindow, channel_names, channel_unit
-from .replay import (ReplayPool, Variant, _json_safe, build_replay_model, effect_variant,
+from .replay import (ReplayPool, Variant, build_replay_model, effect_variant,
                      model_terrain)
 
 #: decision thresholds (documented in docs/validation.md)
@@ -621,6 +622,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     for f in effect_files:
         load_effect_file(str(f))
     ds = load_dataset(data_dir)
+    # checked before the replays, so that a bad folder does not cost the computation
+    out = make_output_folder(out_dir) if out_dir is not None else None
     biped = load_biped(ds.meta.robot, with_visuals=False)
     names = sorted(all_effects()) if candidates is None else list(dict.fromkeys(candidates))
     infos = {n: effect_info(n) for n in names}
@@ -959,18 +962,12 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     timing["total"] = _time.perf_counter() - t_start
     result["timing_s"] = timing
     figs: list[Path] = []
-    out = None
-    if out_dir is not None:
-        out = Path(out_dir)
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise OutputError(f"cannot write {out}: {exc}") from None
+    if out is not None:
         if figures:
             figs = _figures(out, loc_before, loc_after, ranking, channels, edges, R, R_after,
                             windows, selected)
         result["figures"] = [p.name for p in figs]
-        (out / "diagnosis.json").write_text(json.dumps(_json_safe(result), indent=1),
+        (out / "diagnosis.json").write_text(json.dumps(json_safe(result), indent=1),
                                             encoding="utf-8")
         (out / "report.md").write_text(_markdown(result, figs), encoding="utf-8")
     return Diagnosis(result, out, tuple(figs))

@@ -41,8 +41,10 @@ import pandas as pd
 import pinocchio as pin
 
 from ..config import EffectSpec, SimConfig, load_terrain
-from ..exceptions import ConfigError, GranularMpcError, OutputError, PlantDivergedError
+from ..exceptions import ConfigError, GranularMpcError, PlantDivergedError
+from ..output import json_safe, make_output_folder
 from ..robot.model import SIDES, Biped
+from ..runner import trunk_roll_pitch
 from ..terrain.effects_library import (EffectInfo, SensorContext, apply_sensor_effects,
                                        effect_info, joint_torque_function)
 from .prepare import (AXES, StanceWindow, channel_names, channel_unit, patch_points,
@@ -241,18 +243,11 @@ def replay_granular(model: ReplayModel, w: StanceWindow, variant: Variant) -> di
             record(k)
     except PlantDivergedError:
         diverged = True
-    out = {f"q_{j}": qa[:, c] for c, j in enumerate(J)}
-    for c, ax in enumerate(AXES):
-        out[f"grf_{ax}"] = grf[:, c]
-        out[f"intrusion_{ax}"] = intr[:, c]
-    out = _apply_sensors(out, variant, w, J)
-    out["other_grf_z"] = other
-    out["diverged"] = diverged
-    return out
+    return _outputs(qa, grf, intr, other, diverged, variant, w, J)
 
 
-def _apply_sensors(out: dict, variant: Variant, w: StanceWindow, J) -> dict:
-    if not variant.sensors:
+def _apply_sensors(out: dict, variant: Variant | None, w: StanceWindow, J) -> dict:
+    if variant is None or not variant.sensors:
         return out
     ctx = SensorContext(np.full(w.n, w.side, dtype=object), w.time, tuple(J))
     return apply_sensor_effects(out, list(variant.sensors), ctx)
@@ -351,15 +346,8 @@ def replay_rigid(model: ReplayModel, w: StanceWindow, variant: Variant | None = 
             lam_out[k] = lam[0:3]
     except (FloatingPointError, np.linalg.LinAlgError):
         diverged = True
-    out = {f"q_{j}": qa[:, c] for c, j in enumerate(J)}
-    for c, ax in enumerate(AXES):
-        out[f"grf_{ax}"] = lam_out[:, c]
-        out[f"intrusion_{ax}"] = np.where(np.isnan(qa[:, 0]), np.nan, 0.0)
-    if variant is not None:
-        out = _apply_sensors(out, variant, w, J)
-    out["other_grf_z"] = np.zeros(n)
-    out["diverged"] = diverged
-    return out
+    intr = np.where(np.isnan(qa[:, :1]), np.nan, np.zeros((n, 3)))    # pinned: no intrusion
+    return _outputs(qa, lam_out, intr, np.zeros(n), diverged, variant, w, J)
 
 
 # ======================================================================================
@@ -381,11 +369,17 @@ def _planar(biped: Biped, side: str):
     return _PLANAR_CACHE[key]
 
 
-def _roll_pitch(q: np.ndarray) -> tuple[float, float]:
-    x, y, z, w = q[3], q[4], q[5], q[6]
-    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
-    return roll, pitch
+def _outputs(qa, grf, intr, other_grf_z, diverged, variant, w, J) -> dict:
+    """A replay's predicted channels (format v1 names, through the variant's sensor
+    effects), the other foot's vertical force and the divergence flag."""
+    out = {f"q_{j}": qa[:, c] for c, j in enumerate(J)}
+    for c, ax in enumerate(AXES):
+        out[f"grf_{ax}"] = grf[:, c]
+        out[f"intrusion_{ax}"] = intr[:, c]
+    out = _apply_sensors(out, variant, w, J)
+    out["other_grf_z"] = other_grf_z
+    out["diverged"] = diverged
+    return out
 
 
 def _set_foot_state(buf, fi, vel) -> None:
@@ -434,7 +428,7 @@ def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None =
     pin.updateFramePlacements(mdl, data)
     R_B = pin.Quaternion(q3[6], q3[3], q3[4], q3[5]).matrix()
     w_W = R_B @ v3[3:6]
-    roll, pitch = _roll_pitch(q3)
+    roll, pitch = trunk_roll_pitch(q3)
     qa0, dqa0 = q3[biped.idx_q], v3[biped.idx_v]
     R = biped.config.foot.radius
     fid = biped.foot_frame[side]
@@ -511,14 +505,7 @@ def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None =
             intr[k] = buf.diag[:, 2:5].mean(axis=0) if buf.state[:, 6].max() > 0.5 else 0.0
     except (FloatingPointError, np.linalg.LinAlgError):
         diverged = True
-    out = {f"q_{j}": qa[:, c] for c, j in enumerate(J)}
-    for c, ax in enumerate(AXES):
-        out[f"grf_{ax}"] = grf[:, c]
-        out[f"intrusion_{ax}"] = intr[:, c]
-    out = _apply_sensors(out, variant, w, J)
-    out["other_grf_z"] = np.zeros(n)
-    out["diverged"] = diverged
-    return out
+    return _outputs(qa, grf, intr, np.zeros(n), diverged, variant, w, J)
 
 
 REPLAYERS: dict[str, Callable] = {"granular": replay_granular, "rigid": replay_rigid,
@@ -800,6 +787,8 @@ def validate(data_dir: str | Path, out_dir: str | Path | None = None, *,
     for f in effect_files:
         load_effect_file(str(f))
     ds = load_dataset(data_dir)
+    # checked before the replays, so that a bad folder does not cost the computation
+    out = make_output_folder(out_dir) if out_dir is not None else None
     biped = load_biped(ds.meta.robot, with_visuals=False)
     cal, fitted = load_fitted(params)
     cfg = model_terrain(terrain, cal)
@@ -849,38 +838,15 @@ def validate(data_dir: str | Path, out_dir: str | Path | None = None, *,
                                       "change_pct": 100.0 * (a[c] - b[c]) / b[c] if b[c] else None}
                                   for c in channels}
     figs: list[Path] = []
-    out = None
-    if out_dir is not None:
-        out = Path(out_dir)
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise OutputError(f"cannot write the report folder {out}: {exc}") from None
+    if out is not None:
         if figures:
             figs = _figures(out, windows, preds, tables, J, model)
         report["figures"] = [str(p.name) for p in figs]
     report["timing_s"] = {"replay": t_rep, "total": _time.perf_counter() - t0}
     if out is not None:
-        (out / "report.json").write_text(json.dumps(_json_safe(report), indent=1),
+        (out / "report.json").write_text(json.dumps(json_safe(report), indent=1),
                                          encoding="utf-8")
     return ValidationReport(report, tables, windows, preds, out, tuple(figs))
-
-
-def _json_safe(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _json_safe(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_json_safe(v) for v in x]
-    if isinstance(x, (np.floating, float)):
-        x = float(x)
-        return x if math.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    if isinstance(x, np.ndarray):
-        return _json_safe(x.tolist())
-    return x
 
 
 # ======================================================================================

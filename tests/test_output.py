@@ -1,0 +1,30 @@
+"""granular_mpc.output: checked output folders and JSON-safe values."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from granular_mpc.exceptions import OutputError
+from granular_mpc.output import json_safe, make_output_folder
+
+
+def test_json_safe_turns_numpy_and_non_finite_values_into_json():
+    value = {1: np.float64(math.nan), "a": [np.int64(3), np.bool_(True), (np.inf, 2.5)],
+             "arr": np.array([[1.0, np.nan]])}
+    safe = json_safe(value)
+    assert safe == {"1": None, "a": [3, True, [None, 2.5]], "arr": [[1.0, None]]}
+    assert json.loads(json.dumps(safe, allow_nan=False)) == safe
+    assert type(safe["a"][0]) is int and type(safe["a"][1]) is bool
+
+
+def test_make_output_folder_creates_parents_and_rejects_a_file(tmp_path):
+    out = make_output_folder(tmp_path / "x" / "y")
+    assert out.is_dir() and list(out.iterdir()) == []      # the write probe is removed
+    blocker = tmp_path / "file"
+    blocker.write_text("keep me")
+    with pytest.raises(OutputError, match="exists and is not a folder"):
+        make_output_folder(blocker)
+    assert blocker.read_text() == "keep me"
