@@ -15,14 +15,16 @@ import pytest
 
 from granular_mpc.terrain.effects import Param, register_effect, registered_effects
 from granular_mpc.terrain.effects_library import effect_info
-from granular_mpc.validation.diagnose import (Column, Design, Regression, _aicc,
-                                              _candidate_stats, candidate_columns, localize)
+from granular_mpc.validation.diagnose import (LARGE_HELDOUT_REDUCTION, MAX_DELTA_AICC,
+                                              MIN_EFFECT_SIZE, Column, Design, Regression,
+                                              _aicc, _candidate_stats, _guard_jumps,
+                                              candidate_columns, localize)
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 # ----------------------------------------------------------------------------- statistics
-def _design(n_groups=6, n_rows=300, beta=0.5, seed=0):
+def _design(n_groups=6, n_rows=300, beta=0.5, seed=0, noise=1.0):
     rng = np.random.default_rng(seed)
     n = n_groups * n_rows
     groups = np.repeat([f"t{k}" for k in range(n_groups)], n_rows)
@@ -30,7 +32,7 @@ def _design(n_groups=6, n_rows=300, beta=0.5, seed=0):
     nuis = rng.normal(size=n)
     real = np.linspace(-2.0, 2.0, 10)[bins] + 0.3 * rng.normal(size=n)   # a phase profile
     null = rng.normal(size=n)
-    y = 0.8 * nuis + beta * real + rng.normal(size=n)
+    y = 0.8 * nuis + beta * real + noise * rng.normal(size=n)   # σ_c = 1 (the unit)
     X = {"calibration.zeta": nuis, "cohesion.suction": real, "inertial_drag.c_d": null}
     d = Design(y, X, groups, np.zeros(n, int), np.full(n, "grf_z"), bins,
                {"grf_z": 1.0}, 1.0)
@@ -63,9 +65,43 @@ def test_regression_ranks_a_real_column_and_rejects_a_null_one():
     assert other["inclusion_probability"] < 0.2
 
 
+def test_a_thin_effect_passes_by_its_heldout_reduction():
+    """A term that moves no cell by 1 σ_c but removes most of the held-out error (the
+    stance-averaged rows are less noisy than the stance-to-stance scatter) is practical;
+    the same term in scatter-level noise is not."""
+    top, _ = _two_candidate_stats(_design(beta=0.3, noise=0.3))
+    assert top["effect"] == "cohesion"
+    assert top["effect_size"] < MIN_EFFECT_SIZE
+    assert top["heldout_error_reduction"] >= LARGE_HELDOUT_REDUCTION and top["significant"]
+    top, _ = _two_candidate_stats(_design(beta=0.3, noise=1.0))
+    assert top["effect_size"] < MIN_EFFECT_SIZE
+    assert top["heldout_error_reduction"] < LARGE_HELDOUT_REDUCTION
+    assert not top["significant"] and top["delta_aicc"] < MAX_DELTA_AICC
+
+
 def test_null_design_adds_nothing():
     rows = _two_candidate_stats(_design(beta=0.0, seed=3))
     assert not any(r["significant"] for r in rows)
+
+
+def test_guard_jumps_replaces_an_isolated_finite_difference_jump():
+    """One stance whose perturbed replay crossed a contact event (a 50× response) takes
+    its group's mean response; a response that is large on many stances is physics and
+    stays."""
+    rng = np.random.default_rng(0)
+    W, C, B = 24, 3, 10
+    groups = np.array([f"t{i % 3}|{'left' if i % 2 else 'right'}" for i in range(W)])
+    S = 0.03 * (1.0 + 0.2 * rng.normal(size=(W, C, B)))
+    S[9, 1] *= 50.0
+    out, rep = _guard_jumps(S, groups)
+    assert rep == [(9, 1)]
+    peers = [i for i in range(W) if groups[i] == groups[9] and i != 9]
+    np.testing.assert_allclose(out[9, 1], S[peers, 1].mean(axis=0))
+    np.testing.assert_array_equal(np.delete(out, 9, axis=0), np.delete(S, 9, axis=0))
+    np.testing.assert_array_equal(out[9, [0, 2]], S[9, [0, 2]])
+    S2 = S.copy()
+    S2[:6, 2] *= 50.0                      # 25 % of the stances: not isolated
+    assert all(c != 2 for _, c in _guard_jumps(S2, groups)[1])
 
 
 def test_aicc_and_candidate_columns():
