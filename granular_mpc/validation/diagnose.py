@@ -57,19 +57,22 @@ from .replay import (ReplayPool, Variant, build_replay_model, effect_variant,
 MIN_HELDOUT_REDUCTION = 0.02      # at least 2 % less held-out weighted SSE
 MAX_DELTA_AICC = -10.0            # "strong" evidence (Burnham–Anderson)
 MIN_INCLUSION = 0.6               # selected in most bootstrap refits
-MIN_STANCE_REDUCTION = 0.01       # and ≥ 1 % less held-out error stance by stance
+MIN_STANCE_REDUCTION = 0.01       # ≥ 1 % less held-out error stance by stance (see below)
 T_CELL = 4.0                      # |t| of a channel × phase cell that counts as structure
 MAJOR_BIAS = 1.0                  # … and |bias| ≥ this × the stance-to-stance scatter: major
 JUMP_FACTOR = 10.0                # a stance's finite-difference response this × the median …
 JUMP_SHARE = 0.1                  # … on at most this share of the stances: a jump (_guard_jumps)
-MIN_EFFECT_SIZE = 1.0             # practically large: it changes some cell's mean by ≥ this σ
-LARGE_HELDOUT_REDUCTION = 0.25    # … or it removes ≥ this share of the held-out error
+# practically large (_practically_large): it removes ≥ LARGE_HELDOUT_REDUCTION of the
+# held-out error, or it changes some cell's mean by ≥ MIN_EFFECT_SIZE σ and helps held-out
+# stances (MIN_STANCE_REDUCTION)
+MIN_EFFECT_SIZE = 1.0
+LARGE_HELDOUT_REDUCTION = 0.25
 # Both set from data sets where any addition is spurious (no hidden effect, or a second
 # effect on single-effect data): there the fitted terms moved the stance-averaged
 # predictions by at most 0.76 σ and cut the held-out error by at most 17 %; with 0.5 σ
-# alone, 2 of 10 null sets got a term. Either test alone is fragile for effects spread
-# thinly over many cells (a sideways force: 1.0–1.2 σ, yet 50 % of the held-out error),
-# docs/validation.md §3.3 and §5.
+# alone, 2 of 10 null sets got a term. A size test alone is fragile for an effect spread
+# thinly over many cells (a sideways force measured 0.88–2.1 σ over 20 data realisations while
+# removing 32–73 % of the held-out error; bench/user_term.py), docs/validation.md §3.3, §5.
 
 FEATURE_EXPERIMENTS = {
     "depth": "a wider range of sinkage (looser or deeper sand, a payload)",
@@ -1064,12 +1067,18 @@ def _geometry_rows(windows, trials, cand_cols, infos) -> dict:
 
 
 def _practically_large(row: Mapping[str, Any]) -> bool:
-    """Whether a candidate's fit matters in practice: it moves some channel × phase mean
-    by ≥ MIN_EFFECT_SIZE σ, or it removes ≥ LARGE_HELDOUT_REDUCTION of the held-out error
-    (an undefined size, with no stance rows, counts as large)."""
-    size = row["effect_size"]
-    return bool(not size < MIN_EFFECT_SIZE
-                or row["heldout_error_reduction"] >= LARGE_HELDOUT_REDUCTION)
+    """Whether a statistically supported candidate also matters in practice: it removes
+    ≥ LARGE_HELDOUT_REDUCTION of the held-out (trial-grouped, stance-averaged) error, or it
+    moves some channel × phase mean by ≥ MIN_EFFECT_SIZE σ *and* its fit helps held-out
+    stances one by one (≥ MIN_STANCE_REDUCTION). The stance score uses each stance's own
+    finite-difference sensitivities, which carry the open-loop replays' chaotic noise: for
+    a true sideways term with half the held-out error to remove it measured −3 %, so a
+    large held-out reduction does not need it. An undefined size (no stance rows) counts
+    as large."""
+    if row["heldout_error_reduction"] >= LARGE_HELDOUT_REDUCTION:
+        return True
+    return bool(not row["effect_size"] < MIN_EFFECT_SIZE
+                and row["heldout_error_reduction_stance"] >= MIN_STANCE_REDUCTION)
 
 
 def _candidate_stats(reg: Regression, base_keys, cand_keys, cand_cols, infos, *, n_boot,
@@ -1132,7 +1141,6 @@ def _candidate_stats(reg: Regression, base_keys, cand_keys, cand_cols, infos, *,
                 r["params"][col.param]["boot_ci_lo"] = float(np.percentile(vals, 2.5))
                 r["params"][col.param]["boot_ci_hi"] = float(np.percentile(vals, 97.5))
         r["significant"] = bool(r["heldout_error_reduction"] >= MIN_HELDOUT_REDUCTION
-                                and r["heldout_error_reduction_stance"] >= MIN_STANCE_REDUCTION
                                 and r["delta_aicc"] <= MAX_DELTA_AICC
                                 and _practically_large(r)
                                 and (r["inclusion_probability"] if B else 1.0) >= MIN_INCLUSION)
