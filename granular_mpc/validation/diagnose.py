@@ -71,8 +71,9 @@ LARGE_HELDOUT_REDUCTION = 0.25
 # effect on single-effect data): there the fitted terms moved the stance-averaged
 # predictions by at most 0.76 σ and cut the held-out error by at most 17 %; with 0.5 σ
 # alone, 2 of 10 null sets got a term. A size test alone is fragile for an effect spread
-# thinly over many cells (a sideways force measured 0.88–2.1 σ over 20 data realisations while
-# removing 32–73 % of the held-out error; bench/user_term.py), docs/validation.md §3.3, §5.
+# thinly over many cells (a sideways force measured 0.88–2.1 σ over 20 plant realisations
+# of bench/user_term.py's data sets while removing 32–73 % of the held-out error),
+# docs/validation.md §3.3, §5.
 
 FEATURE_EXPERIMENTS = {
     "depth": "a wider range of sinkage (looser or deeper sand, a payload)",
@@ -1073,8 +1074,8 @@ def _practically_large(row: Mapping[str, Any]) -> bool:
     stances one by one (≥ MIN_STANCE_REDUCTION). The stance score uses each stance's own
     finite-difference sensitivities, which carry the open-loop replays' chaotic noise: for
     a true sideways term with half the held-out error to remove it measured −3 %, so a
-    large held-out reduction does not need it. An undefined size (no stance rows) counts
-    as large."""
+    large held-out reduction does not need it. Without stance rows (the stance score is
+    then 0) only the held-out test can pass."""
     if row["heldout_error_reduction"] >= LARGE_HELDOUT_REDUCTION:
         return True
     return bool(not row["effect_size"] < MIN_EFFECT_SIZE
@@ -1303,6 +1304,7 @@ def _refine(pool, base: Variant, windows, channels, edges, sigma, selected, cand
     theta_nuis = {c.param: c.neutral for c in nuis_cols}
     S_sel: dict[str, np.ndarray] = {}
     log = []
+    gkeys = _group_keys(windows)
 
     def variant_with(vals, nuis):
         specs = []
@@ -1339,7 +1341,7 @@ def _refine(pool, base: Variant, windows, channels, edges, sigma, selected, cand
                 S[c.key] = sens[c.key]       # a measurement map: its base sensitivity
             else:
                 S[c.key] = _guard_jumps((_pred_cube(windows, out[c.key], channels, edges)
-                                         - Pc) / step, _group_keys(windows))[0]
+                                         - Pc) / step, gkeys)[0]
         S_sel = {c.key: S[c.key] for c in cols}
         for c in nuis_cols:
             S[c.key] = sens[c.key]
