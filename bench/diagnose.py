@@ -49,7 +49,7 @@ def main() -> None:
         t_diag = time.perf_counter() - t0
     figures = {"validate_s": t_val, "diagnose_s": t_diag,
                "n_stances": rep.report["n_stances"],
-               "replays": diag.result["design"]["replays"]}
+               "replays": diag.design.replays}
     units = {"validate_s": "s", "diagnose_s": "s", "n_stances": "", "replays": ""}
     for k, v in figures.items():
         print(f"{k}: {v:.3g} {units[k]}".rstrip() if isinstance(v, float) else f"{k}: {v}")

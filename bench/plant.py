@@ -8,6 +8,12 @@ Figures (all measured in this process, side by side):
   guide-rig drop, rig then removed), PD torques recomputed every step, default dt and
   integrator; wall time of ``Plant.step`` plus the PD law, nothing else.
 * plant_realtime_factor_sand — the same as simulated seconds per wall second.
+* plant_steps_per_s_sand_compiled / _rigid_compiled — the same robot, state and PD law on
+  :class:`granular_mpc.dynamics.compiled.CompiledPlant` (the whole step one compiled C
+  function, the PD law inside it, ``chunk`` = 10 steps per call), measured right after the
+  reference from the same settled state; ``plant_compiled_speedup_sand`` is the ratio.
+* plant_steps_per_s_sand_compiled_per_step — compiled, one call per step with the PD
+  torque computed in Python (what a Python controller stepping the plant sees).
 * contact_call_us_jit / _vm — one evaluation of a foot's compiled contact function (2
   patches) through its buffer interface, C-compiled vs CasADi's VM (GRANULAR_MPC_JIT=0);
   contact_jit_speedup is their ratio.
@@ -43,6 +49,7 @@ import pinocchio as pin
 
 from granular_mpc.config import DropConfig, GuideRigConfig, SimConfig, load_robot, load_terrain
 from granular_mpc.dynamics import Plant
+from granular_mpc.dynamics.compiled import CompiledPlant
 from granular_mpc.robot import Biped
 from granular_mpc.terrain import build_terrain
 from granular_mpc.terrain.closed_form import FLOAT, FootShape, sagittal_forces
@@ -86,6 +93,24 @@ def plant_rate(biped, terrain, steps=3000):
     wall = time.perf_counter() - t0
     assert d.foot_in_contact(0) and d.foot_in_contact(1), "a foot left the ground"
     return steps / wall, plant.dt
+
+
+def compiled_rates(biped, terrain, steps=20000):
+    """(chunked PD-in-the-loop, per-step Python PD) steps/s of the compiled plant."""
+    plant, d, q_hold = settled(biped, terrain)
+    fast = CompiledPlant(plant)
+    s = fast.state_from_data(d)
+    kp, kd = np.full(6, DROP.kp), np.full(6, DROP.kd)
+    t0 = time.perf_counter()
+    s1 = fast.step(s, n_steps=steps, q_ref=q_hold, kp=kp, kd=kd)
+    chunked = steps / (time.perf_counter() - t0)
+    assert s1.foot_in_contact(0) and s1.foot_in_contact(1), "a foot left the ground"
+    n = steps // 4
+    t0 = time.perf_counter()
+    for _ in range(n):
+        s = fast.step(s, kp * (q_hold - s.q[biped.idx_q]) - kd * s.v[biped.idx_v])
+    per_step = n / (time.perf_counter() - t0)
+    return chunked, per_step
 
 
 def contact_call_us(terrain, calls=20000):
@@ -141,9 +166,16 @@ def main() -> None:
     figures: list[tuple[str, float, str]] = []
     rate_sand, dt = plant_rate(biped, sand)
     rate_rigid, _ = plant_rate(biped, rigid)
+    fast_sand, fast_sand_py = compiled_rates(biped, sand)
+    fast_rigid, _ = compiled_rates(biped, rigid)
     figures += [("plant_steps_per_s_sand", rate_sand, "steps/s"),
                 ("plant_steps_per_s_rigid", rate_rigid, "steps/s"),
-                ("plant_realtime_factor_sand", rate_sand * dt, "x")]
+                ("plant_realtime_factor_sand", rate_sand * dt, "x"),
+                ("plant_steps_per_s_sand_compiled", fast_sand, "steps/s"),
+                ("plant_steps_per_s_rigid_compiled", fast_rigid, "steps/s"),
+                ("plant_steps_per_s_sand_compiled_per_step", fast_sand_py, "steps/s"),
+                ("plant_compiled_speedup_sand", fast_sand / rate_sand, "x"),
+                ("plant_realtime_factor_sand_compiled", fast_sand * dt, "x")]
     jit_us, vm_us = contact_call_us(sand), contact_call_us(sand_vm, calls=4000)
     figures += [("contact_call_us_jit", jit_us, "us"), ("contact_call_us_vm", vm_us, "us"),
                 ("contact_jit_speedup", vm_us / jit_us, "x")]

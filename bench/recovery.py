@@ -58,16 +58,15 @@ def run_case(data: Path, effect: str | None, out: Path, seed: int,
 
     t0 = time.perf_counter()
     diag = diagnose(data, out, seed=seed, n_boot=100)
-    res = diag.result
     row = {"added": ",".join(diag.added) or "-", "diagnose_s": time.perf_counter() - t0,
-           "status": res["verdict"]["status"]}
+           "status": diag.verdict.status}
     if effect is None:
         row.update(rank=None, coef=None, true=None, coef_err=None, channel=None,
                    heldout_red=None, replay_red=None, nothing_added=not diag.added)
         if mismatch:       # "terrain.zeta=1.768": the calibrated value against the truth
             key, _, value = mismatch.partition("=")
             param, true = key.split(".")[-1], float(value)
-            coef = res["calibration"]["values"][param]
+            coef = diag.calibration.values[param]
             row.update(param=param, coef=coef, true=true, coef_err=(coef - true) / true)
         return row
     spec = parse_effect_string(effect)
@@ -79,19 +78,19 @@ def run_case(data: Path, effect: str | None, out: Path, seed: int,
     main = max(info.neutral, key=lambda p: abs(true_all[p] - neutral_all[p])
                / (info.params[p].upper - info.params[p].lower))
     true, neutral = true_all[main], neutral_all[main]
-    entry = next(e for e in res["ranking"] if e["effect"] == name)
-    coef = entry.get("refined_params", {}).get(main, entry["params"][main]["value"])
-    red = res.get("heldout_reduction_by_channel", {})
-    red = {c: d for c, d in red.items() if c != "touchdown_z" or info.kind == "geometry"}
-    sigma = res["design"]["sigma"]
+    entry = next(e for e in diag.ranking if e.effect == name)
+    coef = entry.value_of(main)
+    red = {c: d for c, d in diag.heldout_reduction_by_channel.items()
+           if c != "touchdown_z" or info.kind == "geometry"}
+    sigma = diag.design.sigma
     # the affected channel: largest held-out error reduction in units of its scatter
-    channel = (max(red, key=lambda c: (red[c]["before"] - red[c]["after"]) / sigma.get(c, 1.0))
+    channel = (max(red, key=lambda c: (red[c].before - red[c].after) / sigma.get(c, 1.0))
                if red else None)
-    rep = res.get("replay_rmse_by_channel", {})
-    row.update(rank=entry["rank"], coef=coef, true=true, param=main,
+    rep = diag.replay_rmse_by_channel
+    row.update(rank=entry.rank, coef=coef, true=true, param=main,
                coef_err=(coef - true) / (true - neutral), channel=channel,
-               heldout_red=red[channel]["reduction"] if channel else None,
-               replay_red=rep.get(channel, {}).get("reduction") if channel in rep else None,
+               heldout_red=red[channel].reduction if channel else None,
+               replay_red=rep[channel].reduction if channel in rep else None,
                nothing_added=not diag.added)
     return row
 

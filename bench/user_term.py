@@ -58,10 +58,10 @@ def run_seed(root: Path, seed: int, steps: int, reuse: bool) -> dict:
     if not (reuse and (noisy / "meta.yaml").is_file()):
         noisy_copy(clean, noisy, 1.0, seed=seed)
     d = diagnose(noisy, root / f"s{seed}_diag", candidates=LIBRARY + [USER], n_boot=60)
-    entry = next(e for e in d.result["ranking"] if e["effect"] == USER)
-    c = d.result["fitted_effects"].get(USER, {}).get("c")
+    entry = next(e for e in d.ranking if e.effect == USER)
+    c = d.fitted_effects.get(USER, {}).get("c")
     row = {"seed": seed, "added": ",".join(d.added) or "-", "c": c,
-           "heldout_red": entry["heldout_error_reduction"], "effect_size": entry["effect_size"]}
+           "heldout_red": entry.heldout_error_reduction, "effect_size": entry.effect_size}
     if c is not None:
         v = validate(noisy, root / f"s{seed}_val", effects=[USER], params=root / f"s{seed}_diag",
                      n_boot=100)

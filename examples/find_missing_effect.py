@@ -47,14 +47,14 @@ print("validate: RMSE knee {:.3f} rad, grf_z {:.1f} N, intrusion_z {:.1f} mm".fo
 
 # 3. what is missing?
 diag = diagnose(data, out / "diagnose", n_boot=100)
-print("diagnose:", diag.verdict["text"])
+print("diagnose:", diag.verdict.text)
 for e in diag.ranking[:3]:
-    print(f"  {e['rank']}. {e['effect']:18s} held-out error reduction "
-          f"{100 * e['heldout_error_reduction']:5.1f} %  ΔAICc {e['delta_aicc']:8.1f}  "
-          f"inclusion {e['inclusion_probability']}")
+    print(f"  {e.rank}. {e.effect:18s} held-out error reduction "
+          f"{100 * e.heldout_error_reduction:5.1f} %  ΔAICc {e.delta_aicc:8.1f}  "
+          f"inclusion {e.inclusion_probability}")
 
 # 4. add it with its fitted parameters and replay again
-added = diag.added or [diag.ranking[0]["effect"]]
+added = diag.added or [diag.ranking[0].effect]
 after = validate(data, out / "validate_after", effects=added, params=out / "diagnose", n_boot=200)
 for ch, d in after.report["before_after"].items():
     if ch in ("q_left_knee", "q_right_knee", "grf_z", "intrusion_z"):

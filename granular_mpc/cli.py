@@ -294,7 +294,7 @@ def _parse_noise(items: list[str]) -> dict[str, float]:
 
 def _effects(items: list[str]):
     from .config import EffectSpec
-    from .terrain.effects_library import effect_info
+    from .effects import effect_info
 
     specs = [EffectSpec.model_validate(e) for e in items]
     for s in specs:
@@ -303,7 +303,7 @@ def _effects(items: list[str]):
 
 
 def _load_effect_files(files: list[Path] | None) -> list[str]:
-    from .terrain.effects import load_effect_file
+    from .effects import load_effect_file
 
     names: list[str] = []
     for f in files or []:

@@ -9,17 +9,19 @@ so callers can inspect them rather than parse messages.
     │   └── ModelFileError     a robot / terrain / scenario file is missing or unreadable
     ├── ModelError             a model cannot be built (robot description, geometry)
     ├── SimulationError
-    │   ├── PlantDivergedError non-finite or exploding plant state
-    │   └── RobotFellError     the closed loop left its safe set (optional, by request)
+    │   └── PlantDivergedError non-finite or exploding plant state
     ├── SolverError            a QP could not be set up (bad dimensions, non-finite data)
     ├── DataFormatError        a measurement data set breaks format v1 (all problems listed)
-    └── OutputError            an output folder cannot be written
+    ├── OutputError            an output folder cannot be written
+    └── ViewerError            the Meshcat viewer or its server cannot be used
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Any, Sequence
+
+import numpy as np
 
 
 class GranularMpcError(Exception):
@@ -72,30 +74,31 @@ class PlantDivergedError(SimulationError, FloatingPointError):
         time: simulation time [s] at which divergence was detected.
         q: configuration at that time (may contain NaN).
         v: generalised velocity at that time.
+        q_names, v_names: the coordinates' names (``base_x`` …, ``q_<joint>``; ``base_vx_B`` …
+            in the trunk frame B, ``dq_<joint>``), empty when unknown.
         reason: short machine-readable reason (``"non-finite"``, ``"velocity-bound"``).
     """
 
-    def __init__(self, time: float, q: Sequence[float], v: Sequence[float], reason: str) -> None:
-        import numpy as np
-
+    def __init__(self, time: float, q: Sequence[float], v: Sequence[float], reason: str, *,
+                 q_names: Sequence[str] = (), v_names: Sequence[str] = ()) -> None:
         self.time = float(time)
         self.q = np.array(q, dtype=float)
         self.v = np.array(v, dtype=float)
         self.reason = reason
+        self.q_names = tuple(q_names)
+        self.v_names = tuple(v_names)
+        super().__init__(
+            f"plant diverged at t = {self.time:.4f} s ({reason}); "
+            f"q = {_labelled(self.q, self.q_names)}, v = {_labelled(self.v, self.v_names)}. "
+            "Reduce sim.dt or check the terrain stiffness / controller gains.")
+
+
+def _labelled(values: np.ndarray, names: Sequence[str]) -> str:
+    """``[name=value, …]`` when every entry has a name, else the plain vector."""
+    if len(names) != len(values):
         with np.printoptions(precision=4, suppress=True, linewidth=160):
-            super().__init__(
-                f"plant diverged at t = {self.time:.4f} s ({reason}); "
-                f"q = {self.q}, v = {self.v}. Reduce sim.dt or check the terrain "
-                "stiffness / controller gains.")
-
-
-class RobotFellError(SimulationError):
-    """The robot left its safe set (trunk too low, or roll/pitch too large)."""
-
-    def __init__(self, time: float, reason: str) -> None:
-        self.time = float(time)
-        self.reason = reason
-        super().__init__(f"robot fell at t = {time:.3f} s: {reason}")
+            return str(values)
+    return "[" + ", ".join(f"{n}={x:.4g}" for n, x in zip(names, values)) + "]"
 
 
 class SolverError(GranularMpcError):
@@ -139,8 +142,20 @@ class OutputError(GranularMpcError, OSError):
     """An output folder or file cannot be written."""
 
 
+class ViewerError(GranularMpcError, RuntimeError):
+    """The Meshcat server could not be started or stopped answering.
+
+    Attributes:
+        detail: what failed (server output, timeout …).
+    """
+
+    def __init__(self, message: str, *, detail: str = "") -> None:
+        self.detail = detail
+        super().__init__(message + (f": {detail}" if detail else ""))
+
+
 __all__ = [
     "GranularMpcError", "ConfigError", "ModelFileError", "ModelError", "SimulationError",
-    "PlantDivergedError", "RobotFellError", "SolverError", "DataProblem", "DataFormatError",
-    "OutputError",
+    "PlantDivergedError", "SolverError", "DataProblem", "DataFormatError", "OutputError",
+    "ViewerError",
 ]

@@ -1,10 +1,12 @@
-"""Writing results: output folders that are checked before any work, and JSON-safe values."""
+"""Writing results: output folders checked before any work, JSON-safe values, JSON files
+written atomically."""
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -48,3 +50,26 @@ def json_safe(x: Any) -> Any:
     if isinstance(x, np.bool_):
         return bool(x)
     return x
+
+
+def write_json(path: str | Path, data: Mapping) -> Path:
+    """Write ``data`` as strict JSON (indent 2, no NaN), atomically.
+
+    The text goes to ``<path>.tmp`` first, then replaces ``path``: a reader never sees a
+    half-written file. Pass JSON-safe data (:func:`json_safe`).
+
+    Raises:
+        OutputError: the file cannot be written.
+        ValueError: ``data`` holds NaN or infinity.
+    """
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+        tmp.replace(path)
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    return path
+
+
+__all__ = ["make_output_folder", "json_safe", "write_json"]

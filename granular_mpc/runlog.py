@@ -1,12 +1,14 @@
 """Run logs: written as the run goes, readable after any interruption.
 
 Format (documented in ``docs/log-format.md``): a folder ``log/`` of Parquet files
-``part-00000.parquet``, ``part-00001.parquet`` …, each a complete Parquet file holding
-consecutive rows. A crash, Ctrl-C or divergence loses at most the rows not yet flushed
-(one chunk, ``flush_every`` rows); every part already on disk stays readable.
+``part-00000.parquet``, ``part-00001.parquet`` … (:func:`granular_mpc.columns.log_part_name`),
+each a complete Parquet file holding consecutive rows. A crash, Ctrl-C or divergence loses
+at most the rows not yet flushed (one chunk, ``flush_every`` rows); every part already on
+disk stays readable.
 
-The columns are a superset of measurement data format v1 (``docs/data-format.md``), so a
-run log is itself a valid data set for ``granular-mpc validate``:
+The columns (names from :mod:`granular_mpc.columns`) are a superset of measurement data
+format v1 (``docs/data-format.md``), so a run log is itself a valid data set for
+``granular-mpc validate``:
 
 * v1 columns: ``time``, ``stance``, ``q_<joint>``, ``dq_<joint>``, ``tau_<joint>``,
   ``base_x..z``, ``base_qw, base_qx, base_qy, base_qz``, ``base_vx..vz`` (world),
@@ -26,23 +28,27 @@ from typing import Any, Mapping
 import numpy as np
 import pinocchio as pin
 
+from .columns import (AXES, BASE_COLUMNS, COM_POSITION, COM_VELOCITY, GRF_COLUMNS,
+                      INTRUSION_COLUMNS, LOG_DIR, STANCE, TIME, foot_column, joint_columns,
+                      log_part_name)
 from .exceptions import OutputError
 from .robot.model import SIDES, Biped
+from .rotations import matrix_from_quat_xyzw
 
-V1_BASE = ["base_x", "base_y", "base_z", "base_qw", "base_qx", "base_qy", "base_qz",
-           "base_vx", "base_vy", "base_vz", "base_wx", "base_wy", "base_wz"]
-AXES = ("x", "y", "z")
-
-
-def joint_columns(biped: Biped) -> list[str]:
-    cols = []
-    for prefix in ("q_", "dq_", "tau_"):
-        cols += [prefix + n for n in biped.joint_names]
-    return cols
+LOG_PART_GLOB = "part-*.parquet"
+"""Glob pattern of the complete log parts in a log folder."""
 
 
 class RunLog:
-    """Chunked Parquet writer; call :meth:`append` per sample, :meth:`close` at the end."""
+    """Chunked Parquet writer; call :meth:`append` per sample, :meth:`close` at the end.
+
+    Args:
+        folder: the log folder (created).
+        flush_every: rows per part file.
+
+    Raises:
+        OutputError: the folder cannot be created or written.
+    """
 
     def __init__(self, folder: str | Path, *, flush_every: int = 1000) -> None:
         self.folder = Path(folder)
@@ -59,18 +65,24 @@ class RunLog:
         self.n_rows = 0
 
     def append(self, row: Mapping[str, Any]) -> None:
+        """Add one row; a full chunk is written as the next part."""
         self._rows.append(row)
         self.n_rows += 1
         if len(self._rows) >= self.flush_every:
             self.flush()
 
     def flush(self) -> None:
+        """Write the rows held so far as the next part (atomically: ``.tmp`` then rename).
+
+        Raises:
+            OutputError: the part cannot be written.
+        """
         if not self._rows:
             return
         import pandas as pd
 
         frame = pd.DataFrame.from_records(self._rows)
-        path = self.folder / f"part-{self._part:05d}.parquet"
+        path = self.folder / log_part_name(self._part)
         tmp = path.with_suffix(".tmp")
         try:
             frame.to_parquet(tmp, index=False)
@@ -81,6 +93,7 @@ class RunLog:
         self._rows = []
 
     def close(self) -> None:
+        """Write the remaining rows."""
         self.flush()
 
     def __enter__(self) -> "RunLog":
@@ -91,13 +104,19 @@ class RunLog:
 
 
 def read_log(folder: str | Path):
-    """Read every complete part of a run log (``DIR`` or ``DIR/log``) as one DataFrame."""
+    """Read every complete part of a run log (``DIR`` or ``DIR/log``) as one DataFrame.
+
+    A part that cannot be read (being written when the process died) is skipped.
+
+    Raises:
+        OutputError: the folder holds no log part.
+    """
     import pandas as pd
 
     folder = Path(folder)
-    if (folder / "log").is_dir():
-        folder = folder / "log"
-    parts = sorted(folder.glob("part-*.parquet"))
+    if (folder / LOG_DIR).is_dir():
+        folder = folder / LOG_DIR
+    parts = sorted(folder.glob(LOG_PART_GLOB))
     if not parts:
         raise OutputError(f"no log parts in {folder}")
     frames = []
@@ -110,59 +129,68 @@ def read_log(folder: str | Path):
 
 
 class PlantRecorder:
-    """Builds one log row from the plant state (world frame, SI units)."""
+    """Builds one log row from the plant state (world frame, SI units).
+
+    Args:
+        biped: the robot (joint names, actuated indices, Pinocchio model for the CoM).
+    """
 
     def __init__(self, biped: Biped) -> None:
         self.biped = biped
         self._pdata = biped.create_data()
-        self._qcols = ["q_" + n for n in biped.joint_names]
-        self._dqcols = ["dq_" + n for n in biped.joint_names]
-        self._taucols = ["tau_" + n for n in biped.joint_names]
+        self._qcols = joint_columns(biped.joint_names, "q")
+        self._dqcols = joint_columns(biped.joint_names, "dq")
+        self._taucols = joint_columns(biped.joint_names, "tau")
+        # per foot: (grf, intrusion, contact point) column per axis, then the scalars
+        self._foot = [([(foot_column(side, f"grf_{ax}"), foot_column(side, f"intrusion_{ax}"),
+                         foot_column(side, f"p{ax}")) for ax in AXES],
+                       foot_column(side, "contact"), foot_column(side, "depth"),
+                       foot_column(side, "pitch"), foot_column(side, "cap_z"))
+                      for side in SIDES]
 
     def row(self, d, *, stance: str | None = None, extra: Mapping[str, Any] | None = None) -> dict:
         """Row for plant data ``d``; ``stance`` defaults to the foot in contact (the one
         carrying more weight if both, ``none`` if neither)."""
         b = self.biped
         q, v = d.q, d.v
-        row: dict[str, Any] = {"time": d.t}
+        row: dict[str, Any] = {TIME: d.t}
         qa, dqa, ta = q[b.idx_q], v[b.idx_v], d.tau[b.idx_v]
         for i in range(len(b.joint_names)):
             row[self._qcols[i]] = float(qa[i])
             row[self._dqcols[i]] = float(dqa[i])
             row[self._taucols[i]] = float(ta[i])
-        R = pin.Quaternion(q[6], q[3], q[4], q[5]).matrix()
+        R = matrix_from_quat_xyzw(q[3:7])
         vw = R @ v[0:3]
-        row.update(base_x=q[0], base_y=q[1], base_z=q[2], base_qw=q[6], base_qx=q[3],
-                   base_qy=q[4], base_qz=q[5], base_vx=vw[0], base_vy=vw[1], base_vz=vw[2],
-                   base_wx=v[3], base_wy=v[4], base_wz=v[5])
+        # position, quaternion (w, x, y, z), linear velocity (W), angular velocity (B)
+        base = (q[0], q[1], q[2], q[6], q[3], q[4], q[5], vw[0], vw[1], vw[2], v[3], v[4], v[5])
+        row.update(zip(BASE_COLUMNS, base))
         fz = []
-        for i, side in enumerate(SIDES):
+        for i, (axis_cols, c_contact, c_depth, c_pitch, c_cap) in enumerate(self._foot):
             f = d.foot_force(i)
             diag = d.foot_diag(i)
             pt = d.foot_point(i)
             contact = d.foot_in_contact(i)
-            for k, ax in enumerate(AXES):
-                row[f"{side}_grf_{ax}"] = float(f[k])
-                row[f"{side}_intrusion_{ax}"] = float(diag[2 + k]) if contact else 0.0
-                row[f"{side}_p{ax}"] = float(pt[k])
-            row[f"{side}_contact"] = int(contact)
-            row[f"{side}_depth"] = float(diag[0]) if contact else 0.0
-            row[f"{side}_pitch"] = float(diag[5])
-            row[f"{side}_cap_z"] = float(diag[1])
+            for k, (c_grf, c_intr, c_p) in enumerate(axis_cols):
+                row[c_grf] = float(f[k])
+                row[c_intr] = float(diag[2 + k]) if contact else 0.0
+                row[c_p] = float(pt[k])
+            row[c_contact] = int(contact)
+            row[c_depth] = float(diag[0]) if contact else 0.0
+            row[c_pitch] = float(diag[5])
+            row[c_cap] = float(diag[1])
             fz.append(float(f[2]) if contact else -np.inf)
         if stance is None:
             stance = "none" if max(fz) == -np.inf else SIDES[int(np.argmax(fz))]
-        row["stance"] = stance
-        for ax in AXES:
-            row[f"grf_{ax}"] = row[f"{stance}_grf_{ax}"] if stance != "none" else 0.0
-            row[f"intrusion_{ax}"] = row[f"{stance}_intrusion_{ax}"] if stance != "none" else 0.0
+        row[STANCE] = stance
+        for c_grf, c_intr in zip(GRF_COLUMNS, INTRUSION_COLUMNS):
+            row[c_grf] = row[foot_column(stance, c_grf)] if stance != "none" else 0.0
+            row[c_intr] = row[foot_column(stance, c_intr)] if stance != "none" else 0.0
         pin.centerOfMass(b.model, self._pdata, q, v)
         c, vc = self._pdata.com[0], self._pdata.vcom[0]
-        row.update(com_x=c[0], com_y=c[1], com_z=c[2], com_vx=vc[0], com_vy=vc[1], com_vz=vc[2])
+        row.update(zip(COM_POSITION + COM_VELOCITY, (c[0], c[1], c[2], vc[0], vc[1], vc[2])))
         if extra:
             row.update(extra)
         return row
 
 
-__all__ = ["RunLog", "read_log", "PlantRecorder", "joint_columns", "V1_BASE"]
-
+__all__ = ["RunLog", "read_log", "PlantRecorder", "LOG_PART_GLOB"]

@@ -173,3 +173,68 @@ def interp_segment(df: pd.DataFrame, column: str, a: int, b: int, grid: np.ndarr
     t = df["time"].to_numpy()[a:b]
     ph = 100.0 * (t - t[0]) / (t[-1] - t[0])
     return np.interp(grid, ph, df[column].to_numpy()[a:b])
+
+
+@dataclass
+class ContactLog:
+    """A synthetic run log whose feet touch down before and lift off after the plan.
+
+    Attributes:
+        df: the log (make_log's columns; per-foot contact, grf_z and intrusion rewritten).
+        planned: (side, row_start, row_stop) of the planned stances (``stance`` column).
+        contact: (side, row_start, row_stop) of the true stances, touchdown to lift-off
+            (before any chatter is injected), clipped to the log.
+        dt: sample period [s].
+    """
+
+    df: pd.DataFrame
+    planned: list
+    contact: list
+    dt: float
+
+
+CONTACT_FZ = 60.0        # N, vertical force floor of a foot on the ground
+SINK_DEPTH = 0.03        # m, z_s approached during a stance: z_s = D (1 − exp(−5 u))
+
+
+def make_contact_log(n_stances: int = 4, *, stance_rows: int = 51, gap_rows: int = 10,
+                     early: int = 4, late: int = 2, lead_rows: int = 10,
+                     first_side: str = "left", chatter=(), dt: float = 0.002,
+                     seed: int = 0) -> ContactLog:
+    """make_log's planned stances, with each foot on the ground from ``early`` rows before
+    its planned stance to ``late`` rows after it (clipped to the log), as on sand where the
+    plan says ``none`` during load transfer.
+
+    Per foot: ``<side>_contact`` is 1 on the true stance; ``<side>_grf_z`` is
+    CONTACT_FZ (1 + sin(π u)) there and 0 elsewhere; ``<side>_intrusion_z`` = SINK_DEPTH
+    (1 − exp(−5 u)) and ``<side>_intrusion_x`` = 0.01 u, with u ∈ [0, 1] the phase of the
+    true stance (0 at touchdown). ``chatter`` is a sequence of (side, row) whose contact
+    flag and force are flipped (one-sample chatter). The v1 ``stance``/``grf_*``/
+    ``intrusion_*`` columns stay those of the plan.
+    """
+    L = make_log(n_stances, stance_rows=stance_rows, dt=dt, lead_rows=lead_rows,
+                 gap_rows=gap_rows, first_side=first_side, seed=seed)
+    df = L.df.copy()
+    n = len(df)
+    contact = []
+    cols = {s: {"contact": np.zeros(n, dtype=int), "grf_z": np.zeros(n),
+                "intrusion_z": np.zeros(n), "intrusion_x": np.zeros(n)}
+            for s in ("left", "right")}
+    for side, a, b in L.segments:
+        a2, b2 = max(a - early, 0), min(b + late, n)
+        contact.append((side, a2, b2))
+        u = np.linspace(0.0, 1.0, b2 - a2)
+        c = cols[side]
+        c["contact"][a2:b2] = 1
+        c["grf_z"][a2:b2] = CONTACT_FZ * (1.0 + np.sin(np.pi * u))
+        c["intrusion_z"][a2:b2] = SINK_DEPTH * (1.0 - np.exp(-5.0 * u))
+        c["intrusion_x"][a2:b2] = 0.01 * u
+    for side, row in chatter:
+        c = cols[side]
+        on = c["contact"][row] == 1
+        c["contact"][row] = 0 if on else 1
+        c["grf_z"][row] = 0.0 if on else CONTACT_FZ
+    for side, c in cols.items():
+        for name, values in c.items():
+            df[f"{side}_{name}"] = values
+    return ContactLog(df=df, planned=list(L.segments), contact=contact, dt=dt)

@@ -134,12 +134,23 @@ PITCHES = (-0.3, -0.1, 0.0, 0.2, 0.6)     # 0.6: the back face starts at the arc
 ANGLES = tuple(15.0 * k for k in range(24))
 
 
+#: f_h, f_z against the brute force, relative to |F|: the brute force with n = 3000 points
+#: per piece has an O(1/n) error from the elements cut by the surface or by the
+#: leading/trailing switch — measured worst 2.4e-3 at n = 750, 6.0e-4 at n = 3000
+#: (≈ 1.8/n; f_h at 20 mm, 45°, pitch 0.2), 3.7e-5 at n = 48000. Bound 2e-3 = 6/n, 3.3× the
+#: measured worst (was 2e-2, 33×).
+FORCE_TOL = 2e-3
+#: S₁ (a smooth integrand, midpoint rule, O(1/n²)) and Q (exact by Green's theorem):
+#: measured worst 2.3e-8 and 5.9e-9 of themselves; bound 1e-6, 40× above (was 2e-2).
+MOMENT_TOL = 1e-6
+
+
 def test_closed_form_matches_brute_force_grid(shape):
-    """f_h, f_z within 2 % of |F| (the force magnitude, so components crossing zero are
+    """f_h, f_z within FORCE_TOL of |F| (the force magnitude, so components crossing zero are
     judged on the force scale; at least 1 % of the penetration force at that depth, since
-    a foot rising out of shallow sand feels almost nothing), S₁ and Q within 2 % of themselves, over depths 2–30 mm ×
-    24 velocity directions all around the circle × foot pitch −0.3…0.6 rad.
-    Measured worst: 6e-4 of |F| (f_h, at 20 mm, 45° up-forward, pitch 0.2), S₁ and Q < 1e-7."""
+    a foot rising out of shallow sand feels almost nothing), S₁ and Q within MOMENT_TOL of
+    themselves, over depths 2–30 mm × 24 velocity directions all around the circle × foot
+    pitch −0.3…0.6 rad."""
     worst = {k: (0.0, None) for k in ("f_h", "f_z", "shear_moment", "side_moment")}
     for depth in DEPTHS:
         for pitch in PITCHES:
@@ -158,7 +169,8 @@ def test_closed_form_matches_brute_force_grid(shape):
                     if err > worst[key][0]:
                         worst[key] = (err, (depth, pitch, deg, getattr(cf, key), ref[key]))
     for key, (err, where) in worst.items():
-        assert err < 0.02, f"{key}: relative error {err:.2e} at (depth, pitch, angle°, cf, ref) = {where}"
+        tol = FORCE_TOL if key in ("f_h", "f_z") else MOMENT_TOL
+        assert err < tol, f"{key}: relative error {err:.2e} at (depth, pitch, angle°, cf, ref) = {where}"
 
 
 def test_brute_force_agrees_with_package_numeric(shape):
@@ -168,9 +180,14 @@ def test_brute_force_agrees_with_package_numeric(shape):
     num = sagittal_forces_numeric(shape, PHI, 0.015, 0.1, 0.6, -0.8, zeta=ZETA, n=1200)
     ref = brute_force(shape, PHI, 0.015, 0.1, 0.6, -0.8)
     mag = math.hypot(ref["f_h"], ref["f_z"])
-    assert abs(num["f_h"] - ref["f_h"]) < 5e-3 * mag
-    assert abs(num["f_z"] - ref["f_z"]) < 5e-3 * mag
-    assert num["side_moment"] == pytest.approx(ref["side_moment"], rel=1e-2)
+    # measured (n = 1200 against n = 3000, no element cut at a switch in this case):
+    # f_h 2.7e-8, f_z 2.5e-7 of |F|, S₁ 1.3e-7; bound 1e-5 (40× the worst; was 5e-3)
+    assert abs(num["f_h"] - ref["f_h"]) < 1e-5 * mag
+    assert abs(num["f_z"] - ref["f_z"]) < 1e-5 * mag
+    assert num["shear_moment"] == pytest.approx(ref["shear_moment"], rel=1e-5)
+    # Q by a 2-D midpoint grid of 8·√n = 272 cells a side (O(1/272) at the boundary):
+    # measured 5.1e-5; bound 5e-4 (10×; was 1e-2)
+    assert num["side_moment"] == pytest.approx(ref["side_moment"], rel=5e-4)
 
 
 def test_pure_penetration_of_level_foot_by_hand(shape):

@@ -5,10 +5,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from granular_mpc.analysis import (leg_joint_roles, phase_bands, phase_grid, resample_by_phase,
-                                   resample_stances, rmse_table, role_column, segment_stances,
+from granular_mpc.analysis import (StancePeaks, contact_segments, leg_joint_roles, phase_bands,
+                                   phase_grid, resample_by_phase, resample_stances, rmse_table,
+                                   role_column, segment_stances, stance_column, stance_peaks,
                                    stance_phase)
-from synthetic_log import interp_segment, make_log
+from synthetic_log import SINK_DEPTH, interp_segment, make_contact_log, make_log
 
 
 # --------------------------------------------------------------------------- segmentation
@@ -63,6 +64,77 @@ def test_stance_phase_columns():
         assert g.phase_pct.iloc[0] == 0.0 and g.phase_pct.iloc[-1] == pytest.approx(100.0)
         assert np.all(np.diff(g.phase_pct) > 0)
     assert "phase_pct" not in L.df.columns          # the input is not modified
+
+
+# --------------------------------------------------------------------------- contact stances
+def _rows(segs):
+    return [(r.side, r.row_start, r.row_stop) for r in segs.itertuples()]
+
+
+def test_segment_stances_keeps_planned_default_and_offers_contact():
+    L = make_contact_log(4)
+    planned = segment_stances(L.df)                      # historical default: the plan
+    assert _rows(planned) == L.planned
+    assert (planned.stance_source == "planned").all()
+    contact = contact_segments(L.df)
+    assert _rows(contact) == L.contact
+    assert (contact.stance_source == "contact").all()
+    assert _rows(segment_stances(L.df, source="contact")) == L.contact
+    assert _rows(segment_stances(L.df, source="auto")) == L.contact
+    t = L.df.time.to_numpy()
+    assert np.allclose(contact.t_start, [t[a] for _, a, _ in L.contact])
+    assert np.allclose(contact.t_end, [t[b - 1] for _, _, b in L.contact])
+
+
+def test_stance_column_reads_the_segment_foot():
+    cols = make_contact_log(2).df.columns
+    assert stance_column("grf_z", "right", cols) == "right_grf_z"
+    assert stance_column("intrusion_x", "left", cols) == "left_intrusion_x"
+    assert stance_column("stance_grf_z", "left", cols) == "left_grf_z"
+    assert stance_column("q_swing_knee", "left", cols) == "q_right_knee"
+    assert stance_column("grf_z", "left", ["grf_z", "time"]) == "grf_z"   # v1 data
+
+
+def test_per_stance_figures_start_at_touchdown():
+    L = make_contact_log(4)
+    res = resample_stances(L.df, ["intrusion_z", "stance_grf_z"], n_phase=51)
+    assert (res.stance_source == "contact").all()
+    grid = phase_grid(51)
+    for k, (side, a, b) in enumerate(L.contact):
+        r = res[res.stance_id == k]
+        assert (r.side == side).all()
+        # z_s = D (1 − exp(−5 u)) from touchdown: 0 at phase 0, D (1 − e⁻⁵) at lift-off
+        assert r.intrusion_z.iloc[0] == pytest.approx(0.0)
+        assert r.intrusion_z.iloc[-1] == pytest.approx(SINK_DEPTH * (1 - np.exp(-5.0)))
+        assert np.allclose(r.intrusion_z, interp_segment(L.df, f"{side}_intrusion_z", a, b, grid))
+    # the planned stances start after touchdown, with the foot already sunk
+    old = resample_stances(L.df, ["intrusion_z"], n_phase=51, source="planned")
+    assert (old.stance_source == "planned").all()
+    assert (old[old.phase_pct == 0.0].intrusion_z > 0.3 * SINK_DEPTH).all()
+    ph = stance_phase(L.df)
+    assert len(ph) == sum(b - a for _, a, b in L.contact)
+    assert (ph.stance_source == "contact").all()
+
+
+def test_stance_peaks_against_numpy():
+    L = make_contact_log(4)
+    df = L.df
+    peaks = stance_peaks(df)
+    assert isinstance(peaks, StancePeaks) and peaks.source == "contact"
+    sink = [df[f"{s}_intrusion_z"].to_numpy()[a:b].max() for s, a, b in L.contact]
+    slip = [np.hypot(df[f"{s}_intrusion_x"].to_numpy()[a:b],
+                     df[f"{s}_intrusion_y"].to_numpy()[a:b]).max() for s, a, b in L.contact]
+    assert peaks.n_stances == 4
+    assert peaks.sinkage_peak_mm_mean == pytest.approx(1e3 * np.mean(sink))
+    assert peaks.slip_mm_mean == pytest.approx(1e3 * np.mean(slip))
+    # t_start keeps the stances touching down at or after it
+    later = stance_peaks(df, t_start=df.time.iloc[L.contact[2][1]])
+    assert later.n_stances == 2
+    assert later.sinkage_peak_mm_mean == pytest.approx(1e3 * np.mean(sink[2:]))
+    items = stance_peaks(df, source="planned").summary_items()
+    assert items["stance_source"] == "planned" and items["n_stances"] == 4
+    empty = stance_peaks(df.iloc[:5])
+    assert empty.n_stances == 0 and empty.sinkage_peak_mm_mean is None
 
 
 # --------------------------------------------------------------------------- roles, resampling

@@ -1,4 +1,4 @@
-"""granular_mpc.output: checked output folders and JSON-safe values."""
+"""granular_mpc.output: checked output folders, JSON-safe values, atomic JSON files."""
 from __future__ import annotations
 
 import json
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from granular_mpc.exceptions import OutputError
-from granular_mpc.output import json_safe, make_output_folder
+from granular_mpc.output import json_safe, make_output_folder, write_json
 
 
 def test_json_safe_turns_numpy_and_non_finite_values_into_json():
@@ -28,3 +28,17 @@ def test_make_output_folder_creates_parents_and_rejects_a_file(tmp_path):
     with pytest.raises(OutputError, match="exists and is not a folder"):
         make_output_folder(blocker)
     assert blocker.read_text() == "keep me"
+
+
+def test_write_json_is_strict_and_leaves_no_temporary_file(tmp_path):
+    path = write_json(tmp_path / "s.json", {"a": 1, "b": [None, 2.5]})
+    assert json.loads(path.read_text()) == {"a": 1, "b": [None, 2.5]}
+    assert path.read_text().endswith("\n") and sorted(p.name for p in tmp_path.iterdir()) == ["s.json"]
+    with pytest.raises(ValueError):
+        write_json(tmp_path / "s.json", {"a": math.nan})
+    assert json.loads(path.read_text()) == {"a": 1, "b": [None, 2.5]}   # old file kept
+
+
+def test_write_json_into_a_missing_folder_is_an_output_error(tmp_path):
+    with pytest.raises(OutputError, match="cannot write"):
+        write_json(tmp_path / "missing" / "s.json", {})

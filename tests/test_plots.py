@@ -10,7 +10,9 @@ from granular_mpc.analysis import phase_bands, phase_grid, resample_by_phase, rm
 from granular_mpc.viz import (make_run_plots, plot_cot_vs_speed, plot_grf_bands,
                               plot_intrusion_bands, plot_joint_bands, plot_model_vs_measurement,
                               plot_residual_heatmap, plot_rmse_vs_speed, plot_rolling_cot,
-                              plot_trajectories)
+                              plot_trajectories, trunk_rpy)
+from granular_mpc.columns import BASE_QUATERNION
+from granular_mpc.rotations import matrix_from_quat_wxyz, rot_x, rot_y, rot_z
 from synthetic_log import MASS, G, interp_segment, make_log
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -127,6 +129,21 @@ def test_trajectories_report_the_true_trunk_angles(synth, tmp_path):
     true = np.degrees(synth.roll)
     assert np.allclose(out.data[["roll", "pitch", "yaw"]].to_numpy(), true, atol=1e-9)
     assert np.allclose(out.data.com_x, synth.df.com_x)
+
+
+def test_trunk_rpy_rebuilds_the_rotation_and_ignores_quaternion_scale():
+    rng = np.random.default_rng(3)
+    quat = rng.normal(size=(200, 4))
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    rpy = trunk_rpy(pd.DataFrame(quat, columns=list(BASE_QUATERNION)))
+    assert rpy.shape == (200, 3)
+    for (roll, pitch, yaw), q in zip(rpy, quat):       # R_W_B = Rz(yaw) Ry(pitch) Rx(roll)
+        assert np.allclose(rot_z(yaw) @ rot_y(pitch) @ rot_x(roll), matrix_from_quat_wxyz(q),
+                           atol=1e-12)
+    assert np.all(np.abs(rpy[:, 1]) <= np.pi / 2)
+    scaled = quat * rng.uniform(0.5, 2.0, size=(200, 1)) * np.sign(rng.normal(size=(200, 1)))
+    assert np.allclose(trunk_rpy(pd.DataFrame(scaled, columns=list(BASE_QUATERNION))), rpy,
+                       atol=1e-12)
 
 
 def test_cot_vs_speed_fits_and_ratio(tmp_path):

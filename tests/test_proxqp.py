@@ -1,12 +1,40 @@
-"""Our QP types in front of ProxSuite: correctness against a reference solver, the
-warm-started update path, failure statuses as data."""
+"""Our QP types in front of ProxSuite: correctness against independent reference solvers,
+the warm-started update path, failure statuses as data.
+
+References: DAQP (a dual active-set solver: exact to round-off on these small dense QPs)
+and Clarabel (an interior-point solver), both through qpsolvers — neither shares code with
+ProxSuite. qpsolvers imports every backend it finds, ProxSuite included, when it is first
+imported; ProxSuite's build is fixed by its first import in the process (see
+``load_proxsuite``), so qpsolvers is imported only after the package has loaded the build
+GRANULAR_MPC_PROXSUITE selects, never at collection.
+"""
+
+import functools
 
 import numpy as np
 import pytest
-import qpsolvers
+import scipy.sparse
 
-from granular_mpc.control.solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
+from granular_mpc.control.solvers.proxqp import ProxQPSolver, QPProblem, QPStatus, load_proxsuite
 from granular_mpc.exceptions import SolverError
+
+#: ‖x − x_ref‖∞ of our solver at eps_abs = 1e-9: measured worst 1.1e-7 over seeds 1–30
+#: (one problem each; the assertions use seed 0); bound 1e-6, 9× above
+X_TOL = 1e-6
+#: relative objective gap, same measurement: 7.0e-8; bound 1e-6
+OBJ_TOL = 1e-6
+#: the two references agree: measured 5.1e-11 over seeds 1–30 (Clarabel at 1e-12
+#: tolerances); bound 1e-8 — a wrong reference would be off by O(1)
+REF_TOL = 1e-8
+CLARABEL_TIGHT = dict(tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12, tol_ktratio=1e-10)
+
+
+@functools.cache
+def _qpsolvers():
+    load_proxsuite()          # the chosen ProxSuite build first (see the module docstring)
+    import qpsolvers
+
+    return qpsolvers
 
 
 def random_qp(rng, n=12, n_eq=2, n_in=8):
@@ -24,9 +52,15 @@ def random_qp(rng, n=12, n_eq=2, n_in=8):
     return QPProblem(H, g, A, b, C, l, u, lb, ub)
 
 
-def reference(p: QPProblem) -> np.ndarray:
-    return qpsolvers.solve_qp(p.H, p.g, p.C, p.u, p.A, p.b, p.lb, p.ub, solver="proxqp",
-                              eps_abs=1e-10, eps_rel=0.0)
+def reference(p: QPProblem, solver: str = "daqp") -> np.ndarray:
+    """Solution of ``p`` by an independent solver (``l`` is −∞ in these problems)."""
+    H, C, A, kw = p.H, p.C, p.A, {}
+    if solver == "clarabel":                       # a sparse solver: give it CSC matrices
+        H, C, A = (scipy.sparse.csc_matrix(m) for m in (H, C, A))
+        kw = CLARABEL_TIGHT
+    x = _qpsolvers().solve_qp(H, p.g, C, p.u, A, p.b, p.lb, p.ub, solver=solver, **kw)
+    assert x is not None, f"{solver} found no solution"
+    return x
 
 
 def test_matches_reference_solver_over_random_problems():
@@ -34,27 +68,39 @@ def test_matches_reference_solver_over_random_problems():
     solver = ProxQPSolver(12, 2, 8, box=True, eps_abs=1e-9, max_iter=1000)
     for _ in range(20):
         p = random_qp(rng)
+        assert np.all(p.l < -1e19)               # the references see only C x ≤ u
         sol = solver.solve(p)
         assert sol.status is QPStatus.SOLVED
-        np.testing.assert_allclose(sol.x, reference(p), atol=1e-5)
-        assert p.violation(sol.x) < 1e-6
+        ref = reference(p, "daqp")
+        np.testing.assert_allclose(reference(p, "clarabel"), ref, atol=REF_TOL)
+        np.testing.assert_allclose(sol.x, ref, atol=X_TOL)
+        assert abs(p.objective(sol.x) - p.objective(ref)) <= OBJ_TOL * max(1.0, abs(p.objective(ref)))
+        # ProxSuite stops at a primal residual ≤ eps_abs (eps_rel = 0); ×2 for round-off in
+        # recomputing it here. Measured worst 9.6e-10.
+        assert p.violation(sol.x) < 2e-9
 
 
-def test_warm_started_update_path_tracks_changing_problems():
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_warm_started_update_path_tracks_changing_problems(seed):
     """The documented proxsuite 0.8 pitfall: warm start + update + solve must not crash and
-    must give the same answer as a cold solve."""
-    rng = np.random.default_rng(1)
+    must give the reference answer; the warm start is really used (fewer iterations)."""
+    rng = np.random.default_rng(seed)
     p = random_qp(rng)
     solver = ProxQPSolver(12, 2, 8, box=True, eps_abs=1e-9, max_iter=1000)
     first = solver.solve(p)
     assert first.status.ok
-    assert solver._warm, "warm start is switched on after the first success"
+    warm_its, cold_its = 0, 0
     for k in range(10):
         p.g = p.g + 0.05 * rng.normal(size=12)
         sol = solver.solve(p)
         cold = ProxQPSolver(12, 2, 8, box=True, eps_abs=1e-9, max_iter=1000).solve(p)
-        assert sol.status.ok and cold.status.ok
-        np.testing.assert_allclose(sol.x, cold.x, atol=1e-6)
+        assert sol.status.ok and cold.status.ok and not sol.retried
+        np.testing.assert_allclose(sol.x, reference(p), atol=X_TOL)
+        warm_its += sol.iterations
+        cold_its += cold.iterations
+    # warm-started iterations / cold ones over the 10 updates: measured mean 0.42, worst
+    # 0.84 (seed 0) over seeds 0–59. Bound: fewer in total, on each of three seeds.
+    assert warm_its < cold_its, (warm_its, cold_its)
 
 
 def test_infeasible_problem_is_reported_not_raised():

@@ -1,4 +1,5 @@
-"""granular_mpc.validation.prepare / replay: stance windows, multiple-shooting replays of
+"""granular_mpc.validation.prepare / replay (model, granular, rigid, planar, pool, scoring,
+validation): stance windows, multiple-shooting replays of
 the granular, rigid and planar models, RMSE tables, report and figures, validate --effect."""
 from __future__ import annotations
 
@@ -153,16 +154,18 @@ def test_unwritable_report_folder_fails_before_any_replay(workbench_data, tmp_pa
     """A report folder that cannot be written is an OutputError naming it, raised before
     the replays run (a bad --out must not cost the computation)."""
     from granular_mpc.exceptions import OutputError
-    from granular_mpc.validation import diagnose as diagnose_module
-    from granular_mpc.validation import replay as replay_module
+    from granular_mpc.validation.diagnose import diagnose
+    from granular_mpc.validation.diagnosis import pipeline
+    from granular_mpc.validation.replay import validation
 
     def no_replays(*args, **kwargs):
         raise AssertionError("replays started before the output folder was checked")
 
-    monkeypatch.setattr(replay_module, "ReplayPool", no_replays)
-    monkeypatch.setattr(diagnose_module, "ReplayPool", no_replays)
+    # where validate() and diagnose() build their pools
+    monkeypatch.setattr(validation, "ReplayPool", no_replays)
+    monkeypatch.setattr(pipeline, "ReplayPool", no_replays)
     blocker = tmp_path / "a_file"
     blocker.write_text("")
-    fn = validate if command == "validate" else diagnose_module.diagnose
+    fn = validate if command == "validate" else diagnose
     with pytest.raises(OutputError, match="a_file exists and is not a folder"):
         fn(workbench_data("null"), blocker)

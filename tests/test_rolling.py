@@ -6,7 +6,7 @@ import pytest
 
 from granular_mpc.analysis import (detect_plateau, plateau_by_stance, rolling_from_arrays,
                                    rolling_from_log, segment_stances)
-from synthetic_log import ROLL_TOTAL, make_log, ramp_plateau_ramp
+from synthetic_log import ROLL_TOTAL, make_contact_log, make_log, ramp_plateau_ramp
 
 R_DISC = 0.0413  # m
 
@@ -116,3 +116,22 @@ def test_plateau_by_stance_on_synthetic_log():
     assert np.allclose(tab.onset_pct, 40.0, atol=1.0)
     assert np.allclose(tab.fraction, 0.30, atol=0.015)
     assert (tab.n_plateaus == 1).all()
+
+
+def test_rolling_from_log_measures_from_touchdown():
+    L = make_contact_log(4, early=5, late=3)
+    log = L.df
+    roll = rolling_from_log(log)                       # default: contact stances
+    assert (roll.stance_source == "contact").all()
+    assert sorted(roll.stance_id.unique()) == [0, 1, 2, 3]
+    for k, (side, a, b) in enumerate(L.contact):
+        r = roll[roll.stance_id == k]
+        pitch = log[f"{side}_pitch"].to_numpy()[a:b]
+        assert (r.side == side).all() and len(r) == b - a
+        assert np.allclose(r.dtheta_r, pitch - pitch[0])        # Δθ_r from touchdown
+        assert np.allclose(r.time, log.time.to_numpy()[a:b])
+    planned = rolling_from_log(log, segments=segment_stances(log))
+    assert (planned.stance_source == "planned").all()
+    assert len(planned) == sum(b - a for _, a, b in L.planned)
+    tab = plateau_by_stance(roll)
+    assert (tab.stance_source == "contact").all() and len(tab) == 4

@@ -448,7 +448,7 @@ def test_live_viewer_localhost_streams_and_cleans_up(biped, log, tmp_path, capsy
         assert viewer.url.startswith("http://127.0.0.1:")
         assert viewer.url in capsys.readouterr().out
         http_port = int(viewer.url.split(":")[2].split("/")[0])
-        zmq_port = int(viewer._server.zmq_url.rsplit(":", 1)[1])
+        zmq_port = int(viewer.server.zmq_url.rsplit(":", 1)[1])
         for port in (http_port, zmq_port):
             addrs = _listening(port)
             assert addrs and all(a == "tcp:0100007F" for a in addrs), (port, addrs)
@@ -479,10 +479,10 @@ def test_live_viewer_localhost_streams_and_cleans_up(biped, log, tmp_path, capsy
         last = log.iloc[-1]
         trunk = poses[ROOTP + "world/robot/trunk_0"][:3, 3]
         assert trunk == pytest.approx([last.base_x, last.base_y, last.base_z], abs=1e-9)
-        proc = viewer._server.proc
+        server = viewer.server
     finally:
         viewer.close()
-    assert proc.poll() is not None, "server still running after close()"
+    assert not server.alive(), "server still running after close()"
     assert not _listening(http_port) and not _listening(zmq_port)
     assert viewer.update(rows[0]) is False
 
@@ -520,10 +520,10 @@ def test_replay_live_serves_the_run_as_animation(biped, log, tmp_path):
         keys = _track(clips[ROOTP + "world/robot/trunk_0"], ".position")["keys"]
         assert [k["time"] for k in keys] == list(range(n))
         assert viewer.update(log.iloc[0].to_dict(), force=True) is False  # animation mode
-        proc = viewer._server.proc
+        server = viewer.server
     finally:
         viewer.close()
-    assert proc.poll() is not None
+    assert not server.alive()
 
 
 def test_live_update_never_waits_for_a_stuck_server(biped, log):
@@ -553,4 +553,4 @@ def test_live_update_never_waits_for_a_stuck_server(biped, log):
     finally:
         os.kill(pid, signal.SIGCONT)
         viewer.close()
-    assert viewer._server.proc.poll() is not None
+    assert not viewer.server.alive()

@@ -21,6 +21,20 @@ so only the angle rates enter. Two choices of B (``actuation``):
   s τ_pitch,R) θ̇_trunk and P_f = P_front − τ_1f q̇_1f. These need the trunk pitch/roll rates
   and the stance side of every sample.
 
+**Readings** (as for the full CoT, :mod:`granular_mpc.analysis.cot`). Each planar power is
+split over the actuators: joint j's share of the sagittal power is
+p^s_j = τ_j [S_s D_s q̇_s]_j with D_s = B_s B_sᵀ (identity for ``"exact"``, the trunk rate
+zeroed for ``"paper"``), so Σ_j p^s_j = (B_s τ_s)ᵀ q̇_s; likewise p^f_j with S_f, D_f
+(:func:`decoupled_joint_power`). Then, with i ∈ {s, f}:
+
+* ``"abs_net"`` (the literal paper form, what :func:`cot_decoupled` computes by default):
+  E = Σ_i ∫ |Σ_j p^i_j| dt;
+* ``"abs_per_joint"`` (the package's default reading): E = Σ_i ∫ Σ_j |p^i_j| dt;
+* ``"positive"``: E = Σ_i ∫ Σ_j max(p^i_j, 0) dt.
+
+With ``"exact"`` actuation p^s_j + p^f_j = τ_j q̇_j, so the decoupled ``abs_per_joint`` and
+``positive`` equal the full ones, and only ``abs_net`` differs (|P_s| + |P_f| ≥ |P_s + P_f|).
+
 Integrals are trapezoidal over the samples; d is passed in (the CoM forward distance, see
 :mod:`granular_mpc.analysis.cot`). The full CoT lives in :mod:`granular_mpc.analysis.cot`.
 """
@@ -33,6 +47,7 @@ import numpy as np
 from scipy.integrate import trapezoid
 
 from ..exceptions import ConfigError
+from .cot import COT_READINGS, combine_joint_powers, reading_mode
 from ..robot.model import SIDES, Biped
 from ..robot.planar import (frontal_selection, frontal_view, sagittal_selection,
                             sagittal_view)
@@ -42,17 +57,20 @@ ACTUATIONS = ("exact", "paper")
 
 @dataclass(frozen=True)
 class DecoupledEnergy:
-    """Absolute mechanical work of the two planar models over a window.
+    """Mechanical work of the two planar models over a window, under one reading.
 
     Attributes:
-        sagittal_J: ∫ |(B_s τ_s)ᵀ q̇_s| dt [J].
-        frontal_J: ∫ |(B_f τ_f)ᵀ q̇_f| dt [J].
+        sagittal_J: ∫ |(B_s τ_s)ᵀ q̇_s| dt [J] (reading ``abs_net``; other readings: the
+            module docstring).
+        frontal_J: ∫ |(B_f τ_f)ᵀ q̇_f| dt [J] (same).
         actuation: ``"exact"`` or ``"paper"`` (see the module docstring).
+        reading: ``"abs_net"`` (default), ``"abs_per_joint"`` or ``"positive"``.
     """
 
     sagittal_J: float
     frontal_J: float
     actuation: str
+    reading: str = "abs_net"
 
     @property
     def total_J(self) -> float:
@@ -110,20 +128,13 @@ def _series(x, n: int, name: str, cols: int | None = None) -> np.ndarray:
     return a
 
 
-def decoupled_power(q_a, dq_a, tau_a, dtrunk_pitch, dtrunk_roll, stance_side, *,
-                    biped: Biped | None = None, actuation: str = "exact"
-                    ) -> tuple[np.ndarray, np.ndarray]:
-    """Per-sample planar powers ((B_s τ_s)ᵀ q̇_s, (B_f τ_f)ᵀ q̇_f) [W].
+def decoupled_joint_power(q_a, dq_a, tau_a, dtrunk_pitch, dtrunk_roll, stance_side, *,
+                          biped: Biped | None = None, actuation: str = "exact"
+                          ) -> tuple[np.ndarray, np.ndarray]:
+    """Per-sample, per-actuator shares (p^s, p^f) of the planar powers [W], each (N, 6).
 
-    Args:
-        q_a: (N, 6) actuator angles [rad] (unused by the rates; kept for shape checks).
-        dq_a: (N, 6) actuator rates [rad/s]; tau_a: (N, 6) torques [N·m], actuator order.
-        dtrunk_pitch, dtrunk_roll: (N,) trunk pitch (about +y) and roll (about +x) rates
-            [rad/s].
-        stance_side: ``"left"``/``"right"``, or one of ``"left"``, ``"right"``, ``"none"``
-            per sample (``"none"`` only with ``actuation="exact"``).
-        biped: robot whose joint-axis signs are used (default: +y / +x axes).
-        actuation: ``"exact"`` or ``"paper"`` (module docstring).
+    p^s_j = τ_j [S_s D_s q̇_s]_j and p^f_j = τ_j [S_f D_f q̇_f]_j (module docstring); row sums
+    are the powers of :func:`decoupled_power`. Arguments as :func:`decoupled_power`.
     """
     if actuation not in ACTUATIONS:
         raise ConfigError(f"unknown actuation {actuation!r}", key="actuation",
@@ -141,8 +152,8 @@ def decoupled_power(q_a, dq_a, tau_a, dtrunk_pitch, dtrunk_roll, stance_side, *,
         raise ConfigError("the paper's B_s/B_f need a stance leg in every sample; samples "
                           f"{idx} have stance 'none'", key="stance_side")
     signs = _signs(biped)
-    P_s = np.empty(n)
-    P_f = np.empty(n)
+    p_s = np.zeros((n, 6))
+    p_f = np.zeros((n, 6))
     for side in SIDES:
         mask = (sides == side) | ((sides == "none") & (side == "left"))
         if not mask.any():
@@ -152,20 +163,36 @@ def decoupled_power(q_a, dq_a, tau_a, dtrunk_pitch, dtrunk_roll, stance_side, *,
         Sf = frontal_selection(side, sa)
         dqs = _rates_from_actuated(Ss, dq_a[mask], dpitch[mask], 4)
         dqf = _rates_from_actuated(Sf, dq_a[mask], droll[mask], 1)
-        tau_s = tau_a[mask] @ Ss            # τ_s = S_sᵀ τ_a, row-wise
-        tau_f = tau_a[mask] @ Sf
         if actuation == "paper":
-            tau_s[:, 4] = 0.0               # B_s = [I4 0]ᵀ
-            tau_f[:, 0] = 0.0               # B_f = [0 I2 0]ᵀ
-        P_s[mask] = np.sum(tau_s * dqs, axis=1)
-        P_f[mask] = np.sum(tau_f * dqf, axis=1)
-    return P_s, P_f
+            dqs[:, 4] = 0.0                 # B_s = [I4 0]ᵀ: no torque on the trunk angle
+            dqf[:, 0] = 0.0                 # B_f = [0 I2 0]ᵀ: none on the stance-leg angle
+        p_s[mask] = tau_a[mask] * (dqs @ Ss.T)   # τ_j [S_s D_s q̇_s]_j, row-wise
+        p_f[mask] = tau_a[mask] * (dqf @ Sf.T)
+    return p_s, p_f
 
 
-def decoupled_energy(times, q_a, dq_a, tau_a, trunk_pitch, trunk_roll, stance_side, *,
-                     biped: Biped | None = None, dtrunk_pitch=None, dtrunk_roll=None,
-                     actuation: str = "exact") -> DecoupledEnergy:
-    """∫|P_s| dt and ∫|P_f| dt [J] (trapezoidal), arguments as :func:`cot_decoupled`."""
+def decoupled_power(q_a, dq_a, tau_a, dtrunk_pitch, dtrunk_roll, stance_side, *,
+                    biped: Biped | None = None, actuation: str = "exact"
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Per-sample planar powers ((B_s τ_s)ᵀ q̇_s, (B_f τ_f)ᵀ q̇_f) [W].
+
+    Args:
+        q_a: (N, 6) actuator angles [rad] (unused by the rates; kept for shape checks).
+        dq_a: (N, 6) actuator rates [rad/s]; tau_a: (N, 6) torques [N·m], actuator order.
+        dtrunk_pitch, dtrunk_roll: (N,) trunk pitch (about +y) and roll (about +x) rates
+            [rad/s].
+        stance_side: ``"left"``/``"right"``, or one of ``"left"``, ``"right"``, ``"none"``
+            per sample (``"none"`` only with ``actuation="exact"``).
+        biped: robot whose joint-axis signs are used (default: +y / +x axes).
+        actuation: ``"exact"`` or ``"paper"`` (module docstring).
+    """
+    p_s, p_f = decoupled_joint_power(q_a, dq_a, tau_a, dtrunk_pitch, dtrunk_roll, stance_side,
+                                     biped=biped, actuation=actuation)
+    return p_s.sum(axis=1), p_f.sum(axis=1)
+
+
+def _joint_powers(times, q_a, dq_a, tau_a, trunk_pitch, trunk_roll, stance_side, *, biped,
+                  dtrunk_pitch, dtrunk_roll, actuation):
     t = np.asarray(times, dtype=float)
     if t.ndim != 1 or t.size < 2 or not np.all(np.diff(t) > 0) or not np.isfinite(t).all():
         raise ConfigError("times must be a finite, strictly increasing 1-D array of ≥ 2 "
@@ -175,15 +202,33 @@ def decoupled_energy(times, q_a, dq_a, tau_a, trunk_pitch, trunk_roll, stance_si
         dtrunk_pitch = np.gradient(np.unwrap(_series(trunk_pitch, n, "trunk_pitch")), t)
     if dtrunk_roll is None:
         dtrunk_roll = np.gradient(np.unwrap(_series(trunk_roll, n, "trunk_roll")), t)
-    P_s, P_f = decoupled_power(q_a, dq_a, tau_a, dtrunk_pitch, dtrunk_roll, stance_side,
-                               biped=biped, actuation=actuation)
-    return DecoupledEnergy(float(trapezoid(np.abs(P_s), t)),
-                           float(trapezoid(np.abs(P_f), t)), actuation)
+    p_s, p_f = decoupled_joint_power(q_a, dq_a, tau_a, dtrunk_pitch, dtrunk_roll, stance_side,
+                                     biped=biped, actuation=actuation)
+    return t, p_s, p_f
+
+
+def _energy(t, p_s, p_f, actuation: str, reading: str) -> DecoupledEnergy:
+    mode = reading_mode(reading)
+    return DecoupledEnergy(float(trapezoid(combine_joint_powers(p_s, mode), t)),
+                           float(trapezoid(combine_joint_powers(p_f, mode), t)), actuation,
+                           reading)
+
+
+def decoupled_energy(times, q_a, dq_a, tau_a, trunk_pitch, trunk_roll, stance_side, *,
+                     biped: Biped | None = None, dtrunk_pitch=None, dtrunk_roll=None,
+                     actuation: str = "exact", reading: str = "abs_net") -> DecoupledEnergy:
+    """Sagittal and frontal work [J] (trapezoidal) under ``reading``; default ``"abs_net"``:
+    ∫|P_s| dt and ∫|P_f| dt. Other arguments as :func:`cot_decoupled`."""
+    reading_mode(reading)
+    t, p_s, p_f = _joint_powers(times, q_a, dq_a, tau_a, trunk_pitch, trunk_roll, stance_side,
+                                biped=biped, dtrunk_pitch=dtrunk_pitch,
+                                dtrunk_roll=dtrunk_roll, actuation=actuation)
+    return _energy(t, p_s, p_f, actuation, reading)
 
 
 def cot_decoupled(times, q_a, dq_a, tau_a, trunk_pitch, trunk_roll, stance_side, weight,
                   distance, *, biped: Biped | None = None, dtrunk_pitch=None,
-                  dtrunk_roll=None, actuation: str = "exact") -> float:
+                  dtrunk_roll=None, actuation: str = "exact", reading: str = "abs_net") -> float:
     """Decoupled CoT = (E_s + E_f) / (W_r d) [-] (paper Sec. III-A, module docstring).
 
     Args:
@@ -200,19 +245,67 @@ def cot_decoupled(times, q_a, dq_a, tau_a, trunk_pitch, trunk_roll, stance_side,
         distance: d, forward distance of the CoM [m]; NaN is returned if d ≤ 0.
         biped: the robot (joint-axis signs); default: the package axis conventions.
         actuation: ``"exact"`` (default) or ``"paper"``.
+        reading: ``"abs_net"`` (default, the literal paper form), ``"abs_per_joint"`` or
+            ``"positive"`` (module docstring).
 
     Raises:
         ConfigError: bad shapes, non-finite values, unknown stance side, W_r ≤ 0.
+        ValueError: unknown reading.
     """
     if not (np.isfinite(weight) and weight > 0.0):
         raise ConfigError("weight must be a positive force [N]", key="weight", value=weight)
     e = decoupled_energy(times, q_a, dq_a, tau_a, trunk_pitch, trunk_roll, stance_side,
                          biped=biped, dtrunk_pitch=dtrunk_pitch, dtrunk_roll=dtrunk_roll,
-                         actuation=actuation)
+                         actuation=actuation, reading=reading)
     if not distance > 0.0:
         return float("nan")
     return e.total_J / (float(weight) * float(distance))
 
 
-__all__ = ["cot_decoupled", "decoupled_energy", "decoupled_power", "DecoupledEnergy",
-           "ACTUATIONS"]
+@dataclass(frozen=True)
+class DecoupledCotReadings:
+    """Decoupled CoT of one window under each reading.
+
+    Attributes:
+        abs_per_joint, abs_net, positive: CoT = (E_s + E_f) / (W_r d) [-] (NaN if d ≤ 0).
+        energies: the :class:`DecoupledEnergy` of each reading, in :data:`COT_READINGS`
+            order.
+        weight_N: W_r [N]; distance_m: d [m]; actuation: ``"exact"`` or ``"paper"``.
+    """
+
+    abs_per_joint: float
+    abs_net: float
+    positive: float
+    energies: tuple[DecoupledEnergy, ...]
+    weight_N: float
+    distance_m: float
+    actuation: str
+
+    def get(self, reading: str) -> float:
+        """CoT under ``reading`` [-]."""
+        reading_mode(reading)
+        return getattr(self, reading)
+
+    def cots(self) -> dict[str, float]:
+        """``{reading: CoT}`` for every reading [-]."""
+        return {r: self.get(r) for r in COT_READINGS}
+
+
+def cot_decoupled_readings(times, q_a, dq_a, tau_a, trunk_pitch, trunk_roll, stance_side,
+                           weight, distance, *, biped: Biped | None = None, dtrunk_pitch=None,
+                           dtrunk_roll=None, actuation: str = "exact") -> DecoupledCotReadings:
+    """Decoupled CoT under every reading at once; arguments as :func:`cot_decoupled`."""
+    if not (np.isfinite(weight) and weight > 0.0):
+        raise ConfigError("weight must be a positive force [N]", key="weight", value=weight)
+    t, p_s, p_f = _joint_powers(times, q_a, dq_a, tau_a, trunk_pitch, trunk_roll, stance_side,
+                                biped=biped, dtrunk_pitch=dtrunk_pitch,
+                                dtrunk_roll=dtrunk_roll, actuation=actuation)
+    energies = tuple(_energy(t, p_s, p_f, actuation, r) for r in COT_READINGS)
+    d = float(distance)
+    cot = [e.total_J / (float(weight) * d) if d > 0.0 else float("nan") for e in energies]
+    return DecoupledCotReadings(*cot, energies=energies, weight_N=float(weight), distance_m=d,
+                                actuation=actuation)
+
+
+__all__ = ["cot_decoupled", "decoupled_energy", "decoupled_power", "decoupled_joint_power",
+           "DecoupledEnergy", "DecoupledCotReadings", "cot_decoupled_readings", "ACTUATIONS"]

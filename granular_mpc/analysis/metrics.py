@@ -2,11 +2,19 @@
 
 Definitions (also in ``docs/analysis.md``):
 
-* **Stance segment**: a maximal run of consecutive log rows whose ``stance`` label is one
-  side (``left`` / ``right``) *and* whose ``<side>_contact`` flag is 1 (the contact test is
-  skipped when the per-foot column is absent, e.g. in measurement data format v1). A
-  segment that touches the first or the last row of the log may be cut short by the
-  recording and is marked ``complete = False``; such segments are left out by default.
+* **Stance segment**: one foot's stance, from :mod:`granular_mpc.analysis.stances`. The
+  per-stance functions here (:func:`stance_phase`, :func:`resample_stances`,
+  :func:`stance_peaks`) default to touchdown → lift-off (:func:`contact_segments`: the
+  plant's ``<side>_contact``, else the vertical force, else the plan). The table function
+  :func:`segment_stances` keeps its historical default ``source="planned"``: a maximal
+  run of rows whose planned ``stance`` label is one side *and* whose ``<side>_contact``
+  flag is 1 (the contact test is skipped when the per-foot column is absent). A segment
+  that touches the first or the last row of the log may be cut short by the recording
+  and is marked ``complete = False``; such segments are left out by default. Every
+  segment table and per-stance result carries a ``stance_source`` column.
+* **Stance-foot channels**: the format-v1 ``grf_*`` / ``intrusion_*`` columns follow the
+  planned stance foot in run logs; per stance they are read from the segment foot's own
+  ``<side>_grf_*`` / ``<side>_intrusion_*`` when present (:func:`stance_column`).
 * **Stance phase**: ``phase_pct = 100 (t − t_start) / (t_end − t_start)`` with ``t_start``
   and ``t_end`` the times of the first and last sample of the segment, so every segment
   runs from 0 % to 100 % exactly.
@@ -29,86 +37,105 @@ Definitions (also in ``docs/analysis.md``):
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 from typing import Iterable, Sequence
 
 import numpy as np
 import pandas as pd
 
-SIDES = ("left", "right")
+from ..columns import FOOT_SIDES, GRF_COLUMNS, INTRUSION_COLUMNS, foot_column
+from .stances import (DEFAULT_MIN_SAMPLES, SOURCE_COL, STANCE_TABLE_COLUMNS, find_stances,
+                      resolve_source, stance_table, table_source)
+
+SIDES = FOOT_SIDES
 PHASE_COL = "phase_pct"
 ID_COL = "stance_id"
 _OTHER = {"left": "right", "right": "left"}
 
-SEGMENT_COLUMNS = ["stance_id", "side", "row_start", "row_stop", "t_start", "t_end",
-                   "duration_s", "n_samples", "complete"]
+SEGMENT_COLUMNS = STANCE_TABLE_COLUMNS
+V1_STANCE_FOOT_COLUMNS = GRF_COLUMNS + INTRUSION_COLUMNS
+"""Format-v1 channels of "the stance foot" (read per foot by :func:`stance_column`)."""
 
 
 # --------------------------------------------------------------------------- segmentation
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """(start, stop) positional index pairs (stop exclusive) of the True runs of ``mask``."""
-    m = np.concatenate(([False], np.asarray(mask, dtype=bool), [False]))
-    d = np.diff(m.astype(np.int8))
-    starts = np.flatnonzero(d == 1)
-    stops = np.flatnonzero(d == -1)
-    return list(zip(starts.tolist(), stops.tolist()))
+def segment_stances(log: pd.DataFrame, *, source: str = "planned", require_contact: bool = True,
+                    min_samples: int = DEFAULT_MIN_SAMPLES, include_incomplete: bool = False,
+                    debounce_samples: int | None = None,
+                    force_threshold_N: float | None = None) -> pd.DataFrame:
+    """Split a log into single-foot stance segments (see :mod:`.stances`).
 
-
-def segment_stances(log: pd.DataFrame, *, require_contact: bool = True, min_samples: int = 3,
-                    include_incomplete: bool = False) -> pd.DataFrame:
-    """Split a log into single-stance segments.
-
-    A segment is a maximal run of rows with ``stance == side`` and, if
-    ``require_contact`` and the column exists, ``<side>_contact == 1``.
+    With the default ``source="planned"`` a segment is, as it has always been, a maximal
+    run of rows with ``stance == side`` (``planned_stance`` if the log has that column)
+    and, if ``require_contact`` and the column exists, ``<side>_contact == 1``. With
+    ``source="contact"`` / ``"force"`` / ``"auto"`` it runs from touchdown to lift-off of
+    the foot (contact state or vertical force, debounced), which is what per-stance
+    figures should use; :func:`contact_segments` is that call.
 
     Args:
-        log: run log or measurement DataFrame with ``time`` [s] and ``stance`` columns.
-        require_contact: also require the per-foot contact flag (when present).
+        log: run log or measurement DataFrame with ``time`` [s] and the source's columns.
+        source: ``"planned"`` (default), ``"contact"``, ``"force"`` or ``"auto"``.
+        require_contact: planned source: also require the per-foot contact flag.
         min_samples: runs with fewer rows are dropped (contact flicker).
         include_incomplete: keep runs touching the first or last row of the log.
+        debounce_samples, force_threshold_N: see :func:`.stances.find_stances`.
 
     Returns:
         One row per segment, in time order: ``stance_id`` (0, 1, … after filtering),
         ``side``, ``row_start`` / ``row_stop`` (positional, stop exclusive), ``t_start``,
-        ``t_end`` [s] (first and last sample), ``duration_s``, ``n_samples``, ``complete``.
+        ``t_end`` [s] (first and last sample), ``duration_s``, ``n_samples``, ``complete``,
+        ``stance_source`` (also in ``attrs["stance_source"]``).
 
     Raises:
-        ValueError: if ``time`` or ``stance`` is missing, or time is not increasing.
+        ValueError: if ``time`` or the source's columns are missing, or time is not
+            increasing.
     """
-    for col in ("time", "stance"):
-        if col not in log.columns:
-            raise ValueError(f"segment_stances: the log has no {col!r} column")
-    t = log["time"].to_numpy(dtype=float)
-    if t.size > 1 and not np.all(np.diff(t) > 0):
-        bad = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
-        raise ValueError(f"segment_stances: time is not strictly increasing at row {bad}")
-    stance = log["stance"].astype(str).to_numpy()
-    n = len(log)
-    rows = []
-    for side in SIDES:
-        mask = stance == side
-        ccol = f"{side}_contact"
-        if require_contact and ccol in log.columns:
-            mask &= log[ccol].to_numpy(dtype=float) > 0.5
-        for a, b in _runs(mask):
-            complete = a > 0 and b < n
-            if b - a < max(int(min_samples), 2) or (not complete and not include_incomplete):
-                continue
-            rows.append((side, a, b, t[a], t[b - 1], t[b - 1] - t[a], b - a, complete))
-    rows.sort(key=lambda r: r[1])
-    out = pd.DataFrame(rows, columns=SEGMENT_COLUMNS[1:])
-    out.insert(0, "stance_id", np.arange(len(out), dtype=int))
-    return out.astype({"row_start": int, "row_stop": int, "n_samples": int, "complete": bool})
+    src = resolve_source(log, source)
+    stances = find_stances(log, src, debounce_samples=debounce_samples,
+                           force_threshold_N=force_threshold_N, min_samples=min_samples,
+                           require_contact=require_contact)
+    return stance_table(stances, include_incomplete=include_incomplete, source=src)
+
+
+def contact_segments(log: pd.DataFrame, **kwargs) -> pd.DataFrame:
+    """:func:`segment_stances` from touchdown to lift-off: ``source="auto"`` (the contact
+    state if the log has ``<side>_contact``, else the vertical force, else the plan)."""
+    kwargs.setdefault("source", "auto")
+    return segment_stances(log, **kwargs)
+
+
+def _segments(log: pd.DataFrame, segments: pd.DataFrame | None, kwargs: dict) -> pd.DataFrame:
+    """``segments`` or, if None, the log's touchdown-to-lift-off segments."""
+    return contact_segments(log, **kwargs) if segments is None else segments
+
+
+def stance_column(name: str, side: str, columns: Iterable[str]) -> str:
+    """Column holding channel ``name`` during a stance of ``side``.
+
+    :func:`role_column` first; then a format-v1 stance-foot channel (``grf_x..z``,
+    ``intrusion_x..z``) is read from the foot's own column ``<side>_<name>`` when the log
+    has it. In run logs the v1 columns follow the *planned* stance foot, which during a
+    contact stance may be the other foot (or none); the per-foot column is the same
+    value whenever the plan agrees.
+    """
+    col = role_column(name, side)
+    if col in V1_STANCE_FOOT_COLUMNS:
+        own = foot_column(side, col)
+        if own in set(columns):
+            return own
+    return col
 
 
 def stance_phase(log: pd.DataFrame, segments: pd.DataFrame | None = None,
                  **segment_kwargs) -> pd.DataFrame:
-    """Rows of ``log`` that lie in a stance segment, with ``stance_id`` and ``phase_pct``.
+    """Rows of ``log`` that lie in a stance segment, with ``stance_id``, ``phase_pct`` and
+    ``stance_source``.
 
-    Returns a new DataFrame (the input is not modified), index reset; ``segment_kwargs``
-    go to :func:`segment_stances` when ``segments`` is not given.
+    Returns a new DataFrame (the input is not modified), index reset. Without
+    ``segments`` the stances run from touchdown to lift-off (:func:`contact_segments`,
+    ``segment_kwargs`` passed on; ``source="planned"`` gives the planned stances).
     """
-    if segments is None:
-        segments = segment_stances(log, **segment_kwargs)
+    segments = _segments(log, segments, segment_kwargs)
+    src = table_source(segments)
     parts = []
     t_all = log["time"].to_numpy(dtype=float)
     for seg in segments.itertuples(index=False):
@@ -116,11 +143,71 @@ def stance_phase(log: pd.DataFrame, segments: pd.DataFrame | None = None,
         t = t_all[seg.row_start:seg.row_stop]
         part[ID_COL] = int(seg.stance_id)
         part[PHASE_COL] = 100.0 * (t - t[0]) / (t[-1] - t[0])
+        part[SOURCE_COL] = src
         parts.append(part)
     if not parts:
         return log.iloc[0:0].assign(**{ID_COL: pd.Series(dtype=int),
-                                       PHASE_COL: pd.Series(dtype=float)})
+                                       PHASE_COL: pd.Series(dtype=float),
+                                       SOURCE_COL: pd.Series(dtype=object)})
     return pd.concat(parts, ignore_index=True)
+
+
+@dataclass(frozen=True)
+class StancePeaks:
+    """Per-stance peaks of the stance foot's sinkage and slip, averaged over stances.
+
+    Attributes:
+        sinkage_peak_mm_mean: mean over stances of max z_s (``intrusion_z`` of the stance
+            foot, depth below its touchdown point, positive deeper) [mm]; None without
+            stances.
+        slip_mm_mean: mean over stances of max ‖(x_s, y_s)‖ (horizontal displacement of
+            the contact point from touchdown, sole rolling included) [mm]; None without
+            stances.
+        n_stances: stances averaged.
+        source: stance source (``"contact"``, ``"force"``, ``"planned"``).
+    """
+
+    sinkage_peak_mm_mean: float | None
+    slip_mm_mean: float | None
+    n_stances: int
+    source: str
+
+    def summary_items(self) -> dict:
+        """``sinkage_peak_mm_mean``, ``slip_mm_mean``, ``n_stances``, ``stance_source``."""
+        return {"sinkage_peak_mm_mean": self.sinkage_peak_mm_mean,
+                "slip_mm_mean": self.slip_mm_mean, "n_stances": self.n_stances,
+                SOURCE_COL: self.source}
+
+
+def stance_peaks(log: pd.DataFrame, t_start: float | None = None, *,
+                 segments: pd.DataFrame | None = None, **segment_kwargs) -> StancePeaks:
+    """Peak sinkage and slip per stance, averaged over the stances starting at or after
+    ``t_start`` [s] (over all complete stances if none does).
+
+    Stances: ``segments``, else touchdown to lift-off (:func:`contact_segments` with
+    ``segment_kwargs``; ``source="planned"`` reproduces the runner's historical
+    ``stance_metrics``). The channels are read per foot (:func:`stance_column`:
+    ``<side>_intrusion_x/y/z`` when present, else the v1 ``intrusion_*``).
+    """
+    segs = _segments(log, segments, segment_kwargs)
+    src = table_source(segs)
+    if t_start is not None and len(segs):
+        later = segs[segs["t_start"] >= t_start - 1e-9]
+        if len(later):
+            segs = later
+    if len(segs) == 0:
+        return StancePeaks(None, None, 0, src)
+    sink, slip = [], []
+    for seg in segs.itertuples(index=False):
+        sl = slice(seg.row_start, seg.row_stop)
+
+        def col(name: str) -> np.ndarray:
+            return log[stance_column(name, seg.side, log.columns)].to_numpy(dtype=float)[sl]
+
+        sink.append(col("intrusion_z").max())
+        slip.append(np.hypot(col("intrusion_x"), col("intrusion_y")).max())
+    return StancePeaks(1e3 * float(np.mean(sink)), 1e3 * float(np.mean(slip)), int(len(segs)),
+                       src)
 
 
 # --------------------------------------------------------------------------- roles
@@ -206,18 +293,21 @@ def resample_stances(log: pd.DataFrame, channels: Sequence[str], *,
     """Resample every stance segment of a log onto a common phase grid.
 
     Args:
-        log: run log / measurement DataFrame (``time``, ``stance`` and the channels).
-        channels: column names, possibly in role space (see :func:`role_column`); the
-            output keeps the names as given.
-        segments: from :func:`segment_stances`; computed with ``segment_kwargs`` if None.
+        log: run log / measurement DataFrame (``time``, the stance source's columns and
+            the channels).
+        channels: column names, possibly in role space, resolved per stance by
+            :func:`stance_column` (so ``grf_z`` is the stance foot's own ``<side>_grf_z``
+            when the log has it); the output keeps the names as given.
+        segments: from :func:`segment_stances`; if None, touchdown to lift-off
+            (:func:`contact_segments` with ``segment_kwargs``).
         n_phase: grid size over 0–100 % stance phase.
 
     Returns:
-        Wide DataFrame ``[stance_id, side, phase_pct, *channels]`` (``n_phase`` rows per
-        stance), values in the units of the log.
+        Wide DataFrame ``[stance_id, side, stance_source, phase_pct, *channels]``
+        (``n_phase`` rows per stance), values in the units of the log.
     """
-    if segments is None:
-        segments = segment_stances(log, **segment_kwargs)
+    segments = _segments(log, segments, segment_kwargs)
+    src = table_source(segments)
     grid = phase_grid(n_phase)
     t_all = log["time"].to_numpy(dtype=float)
     out = []
@@ -225,9 +315,10 @@ def resample_stances(log: pd.DataFrame, channels: Sequence[str], *,
         t = t_all[seg.row_start:seg.row_stop]
         ph = 100.0 * (t - t[0]) / (t[-1] - t[0])
         block = {ID_COL: np.full(grid.size, int(seg.stance_id)),
-                 "side": np.full(grid.size, seg.side, dtype=object), PHASE_COL: grid}
+                 "side": np.full(grid.size, seg.side, dtype=object),
+                 SOURCE_COL: np.full(grid.size, src, dtype=object), PHASE_COL: grid}
         for c in channels:
-            col = role_column(c, seg.side)
+            col = stance_column(c, seg.side, log.columns)
             if col not in log.columns:
                 raise ValueError(f"resample_stances: channel {c!r} → column {col!r} "
                                  f"is not in the log")
@@ -235,7 +326,7 @@ def resample_stances(log: pd.DataFrame, channels: Sequence[str], *,
             block[c] = np.interp(grid, ph, y)
         out.append(pd.DataFrame(block))
     if not out:
-        return pd.DataFrame(columns=[ID_COL, "side", PHASE_COL, *channels])
+        return pd.DataFrame(columns=[ID_COL, "side", SOURCE_COL, PHASE_COL, *channels])
     return pd.concat(out, ignore_index=True)
 
 
@@ -422,7 +513,8 @@ def rmse_table(prediction: pd.DataFrame, measurement: pd.DataFrame,
 
 
 __all__ = [
-    "segment_stances", "stance_phase", "role_column", "leg_joint_roles", "phase_grid",
+    "segment_stances", "contact_segments", "stance_column", "StancePeaks", "stance_peaks",
+    "V1_STANCE_FOOT_COLUMNS", "stance_phase", "role_column", "leg_joint_roles", "phase_grid",
     "resample_by_phase", "resample_stances", "phase_bands", "rmse_table", "SEGMENT_COLUMNS",
     "RMSE_COLUMNS", "PHASE_COL",
 ]

@@ -42,7 +42,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from .metrics import ID_COL, PHASE_COL, _runs, segment_stances
+from .metrics import ID_COL, PHASE_COL, contact_segments, stance_column
+from .stances import SOURCE_COL, table_source, true_runs
 
 DEFAULT_MIN_RATE = 0.05  # rad/s
 
@@ -112,17 +113,19 @@ def rolling_from_log(log: pd.DataFrame, *, segments: pd.DataFrame | None = None,
 
     Args:
         log: run log DataFrame.
-        segments: from :func:`~granular_mpc.analysis.metrics.segment_stances` (default:
-            computed with its defaults).
+        segments: from :func:`~granular_mpc.analysis.metrics.segment_stances`; default:
+            touchdown to lift-off (:func:`~granular_mpc.analysis.metrics.contact_segments`:
+            contact state, else force, else the plan), so Δθ_r is measured from touchdown.
         min_rate: see :func:`rolling_from_arrays`.
         lateral: include ẏ_s in ‖v_s‖.
 
     Returns:
-        Long DataFrame ``[stance_id, side, phase_pct, …]`` with the columns of
-        :func:`rolling_from_arrays`.
+        Long DataFrame ``[stance_id, side, stance_source, phase_pct, …]`` with the columns
+        of :func:`rolling_from_arrays`.
     """
     if segments is None:
-        segments = segment_stances(log)
+        segments = contact_segments(log)
+    src = table_source(segments)
     t_all = log["time"].to_numpy(dtype=float)
     parts = []
     for seg in segments.itertuples(index=False):
@@ -130,7 +133,7 @@ def rolling_from_log(log: pd.DataFrame, *, segments: pd.DataFrame | None = None,
         side = seg.side
 
         def col(name: str) -> np.ndarray:
-            for c in (f"{side}_{name}", name):
+            for c in (f"{side}_{name}", stance_column(name, side, log.columns)):
                 if c in log.columns:
                     return log[c].to_numpy(dtype=float)[sl]
             raise ValueError(f"rolling_from_log: the log has no {side}_{name} column")
@@ -140,12 +143,13 @@ def rolling_from_log(log: pd.DataFrame, *, segments: pd.DataFrame | None = None,
                                  intrusion_y=col("intrusion_y") if lateral else None,
                                  min_rate=min_rate)
         df.insert(0, PHASE_COL, 100.0 * (t - t[0]) / (t[-1] - t[0]))
+        df.insert(0, SOURCE_COL, src)
         df.insert(0, "side", side)
         df.insert(0, ID_COL, int(seg.stance_id))
         parts.append(df)
     if not parts:
-        return pd.DataFrame(columns=[ID_COL, "side", PHASE_COL, "time", "theta_r", "dtheta_r",
-                                     "dtheta_r_rate", "vs_x", "vs_z", "v_s", "gamma", "r_eff"])
+        return pd.DataFrame(columns=[ID_COL, "side", SOURCE_COL, PHASE_COL, "time", "theta_r",
+                                     "dtheta_r", "dtheta_r_rate", "vs_x", "vs_z", "v_s", "gamma", "r_eff"])
     return pd.concat(parts, ignore_index=True)
 
 
@@ -199,7 +203,7 @@ def detect_plateau(phase_pct: np.ndarray, rate: np.ndarray, *, threshold: float 
     mids = np.concatenate(([ph[0]], 0.5 * (ph[1:] + ph[:-1]), [ph[-1]]))
     span = ph[-1] - ph[0]
     intervals = []
-    for a, b in _runs(r < threshold):
+    for a, b in true_runs(r < threshold):
         lo, hi = float(mids[a]), float(mids[b])
         if hi - lo >= min_duration_pct:
             intervals.append((lo, hi))
@@ -213,16 +217,18 @@ def plateau_by_stance(rolling: pd.DataFrame, **kwargs) -> pd.DataFrame:
     """:func:`detect_plateau` on every stance of :func:`rolling_from_log` output.
 
     Returns:
-        ``[stance_id, side, fraction, onset_pct, n_plateaus, threshold]``; ``kwargs`` go to
-        :func:`detect_plateau`.
+        ``[stance_id, side, fraction, onset_pct, n_plateaus, threshold, stance_source]``
+        (``stance_source`` copied from ``rolling``, ``"planned"`` if it has none);
+        ``kwargs`` go to :func:`detect_plateau`.
     """
     rows = []
     for sid, g in rolling.groupby(ID_COL, sort=True):
         res = detect_plateau(g[PHASE_COL].to_numpy(), g["dtheta_r_rate"].to_numpy(), **kwargs)
+        src = str(g[SOURCE_COL].iloc[0]) if SOURCE_COL in g.columns else "planned"
         rows.append((sid, g["side"].iloc[0], res.fraction, res.onset_pct, len(res.intervals),
-                     res.threshold))
+                     res.threshold, src))
     return pd.DataFrame(rows, columns=[ID_COL, "side", "fraction", "onset_pct", "n_plateaus",
-                                       "threshold"])
+                                       "threshold", SOURCE_COL])
 
 
 __all__ = ["rolling_from_arrays", "rolling_from_log", "PlateauResult", "detect_plateau",

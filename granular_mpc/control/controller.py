@@ -19,12 +19,13 @@ import pinocchio as pin
 
 from ..config import CommandConfig, ControllerConfig
 from ..robot.model import SIDES, Biped
+from ..rotations import matrix_from_quat_xyzw, rot_z
 from ..terrain.base import TerrainModel
 from ..terrain.closed_form import FLOAT
 from ..terrain.contact import slice_geometry
 from .contact_model import GroundModel, ground_model
 from .gait import LEFT, CommandRamp, GaitSchedule, foothold, predict_com, predict_dcm
-from .mpc import CentroidalMPC, MPCData, MPCPlan, rot_z
+from .mpc import CentroidalMPC, MPCData, MPCPlan
 from .swing import cycloid
 from .wbc import FootPoints, WBCData, WBCReference, WholeBodyController
 
@@ -128,7 +129,7 @@ class WalkingController:
 
     def new_data(self, q: np.ndarray, dt_wbc: float | None = None) -> ControllerData:
         com = self.biped.com(q)
-        R = pin.Quaternion(q[6], q[3], q[4], q[5]).matrix()
+        R = matrix_from_quat_xyzw(q[3:7])
         yaw = math.atan2(R[1, 0], R[0, 0])
         return ControllerData(self.mpc.new_data(), self.wbc.new_data(),
                               CommandRamp(self.command, dt_wbc or 1.0 / self.config.wbc.rate_hz),
@@ -215,7 +216,7 @@ class WalkingController:
         pin.updateFramePlacements(b.model, pd)
         pin.centerOfMass(b.model, pd, q, v)
         com, vcom = pd.com[0].copy(), pd.vcom[0].copy()
-        R = pin.Quaternion(q[6], q[3], q[4], q[5]).matrix()
+        R = matrix_from_quat_xyzw(q[3:7])
         rpy = pin.rpy.matrixToRpy(R)
         omega_W = R @ v[3:6]
         feet = self.foot_points(pd)

@@ -34,19 +34,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..config import MPCConfig
+from ..rotations import rot_z, skew
 from .contact_model import GroundModel
 from .solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
 
 BIG = 1e20
-
-
-def skew(r: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
-
-
-def rot_z(yaw: float) -> np.ndarray:
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 @dataclass

@@ -27,8 +27,8 @@ import pinocchio as pin
 
 from ..config import WBCConfig
 from ..robot.model import SIDES, Biped
+from ..rotations import matrix_from_quat_xyzw, rot_z, skew
 from .contact_model import GroundModel
-from .mpc import rot_z, skew
 from .solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -142,7 +142,7 @@ class WholeBodyController:
             tasks.append((name, J, e, w))
 
         # trunk orientation: base angular acceleration (trunk frame) = q̈[3:6]
-        R = pin.Quaternion(q[6], q[3], q[4], q[5]).matrix()
+        R = matrix_from_quat_xyzw(q[3:7])
         err_W = pin.log3(ref.R_trunk @ R.T)
         omega_W = R @ v[3:6]
         alpha_W = c.kp_orientation * err_W + c.kd_orientation * (ref.omega - omega_W)

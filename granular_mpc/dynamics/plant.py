@@ -29,19 +29,12 @@ import pinocchio as pin
 from ..config import SimConfig
 from ..exceptions import ConfigError, PlantDivergedError
 from ..robot.model import SIDES, Biped
+from ..rotations import matrix_from_quat_xyzw
 from ..terrain.base import TerrainModel
 from ..terrain.contact import ContactData
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _ZERO_FORCE = pin.Force.Zero()
-
-
-def _quat_matrix(quat_xyzw: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a unit quaternion given as (x, y, z, w)."""
-    x, y, z, w = quat_xyzw
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
 @dataclass(frozen=True)
@@ -53,7 +46,7 @@ class Plant:
         joint_effects: joint-effect hook, empty (off) by default: callables
             ``(q_a [rad], dq_a [rad/s]) -> tau_a [N·m]`` (actuator order) whose sum is added
             to the actuator torques in :meth:`forward`, at the state being evaluated (e.g.
-            ``granular_mpc.terrain.effects_library.joint_friction``). The held command
+            ``granular_mpc.effects.joint_friction``). The held command
             ``d.tau`` (what a motor-current torque sensor reports) is not changed.
     """
 
@@ -135,7 +128,7 @@ class Plant:
             # external wrench on the trunk, given in W at the trunk origin → trunk frame
             if callable(w):
                 w = w(q, v)
-            R = _quat_matrix(q[3:7])
+            R = matrix_from_quat_xyzw(q[3:7])
             d.fext[1] = pin.Force(R.T @ w[0:3], R.T @ w[3:6])
         return pin.aba(model, pdata, q, v if v_dyn is None else v_dyn, tau, d.fext)
 
@@ -218,7 +211,8 @@ class Plant:
         if not (np.abs(d.v).max() < self.sim.max_speed) or not np.isfinite(d.q).all():
             reason = "non-finite" if not (np.isfinite(d.v).all() and np.isfinite(d.q).all()) \
                 else "velocity-bound"
-            raise PlantDivergedError(d.t, d.q, d.v, reason)
+            raise PlantDivergedError(d.t, d.q, d.v, reason, q_names=self.biped.q_names,
+                                     v_names=self.biped.v_names)
 
     def simulate(self, d: "PlantData", duration: float, controller=None) -> None:
         """Step for ``duration`` [s]; ``controller(d) -> tau_a`` is called every step."""

@@ -124,6 +124,26 @@ class Biped:
     def velocity_limits(self) -> np.ndarray:
         return np.array(self.model.velocityLimit[self.idx_v], dtype=float)
 
+    @cached_property
+    def q_names(self) -> tuple[str, ...]:
+        """Name of each entry of q: ``base_x, base_y, base_z`` (p_W_B [m]),
+        ``base_qx, base_qy, base_qz, base_qw`` (Pinocchio's quaternion order), ``q_<joint>``."""
+        names = ["base_x", "base_y", "base_z", "base_qx", "base_qy", "base_qz", "base_qw"]
+        names += [""] * (self.model.nq - len(names))
+        for j, i in zip(self.joint_names, self.idx_q):
+            names[int(i)] = f"q_{j}"
+        return tuple(names)
+
+    @cached_property
+    def v_names(self) -> tuple[str, ...]:
+        """Name of each entry of v: ``base_vx_B..vz_B``, ``base_wx_B..wz_B`` (both in the trunk frame
+        B, Pinocchio's free-flyer convention), ``dq_<joint>``."""
+        names = ["base_vx_B", "base_vy_B", "base_vz_B", "base_wx_B", "base_wy_B", "base_wz_B"]
+        names += [""] * (self.model.nv - len(names))
+        for j, i in zip(self.joint_names, self.idx_v):
+            names[int(i)] = f"dq_{j}"
+        return tuple(names)
+
     # ---------------------------------------------------------------- configurations
     def q_from_parts(self, p_W_B, quat_xyzw, q_a) -> np.ndarray:
         q = pin.neutral(self.model)

@@ -1,9 +1,10 @@
 """Terrain models: granular (RFT closed form, solidified wedge, bulldozing) and rigid ground.
 
 Choose by name in YAML (``models/terrain/*.yaml``); build with :func:`build_terrain`.
+The effects a terrain may add live in :mod:`granular_mpc.effects` (re-exported here).
 """
+from ..effects import Param, PatchState, get_effect, register_effect, registered_effects
 from .base import TerrainModel, build_terrain
-from .effects import Param, PatchState, get_effect, register_effect, registered_effects
 from .rft import alpha
 
 __all__ = ["TerrainModel", "build_terrain", "alpha", "Param", "PatchState", "register_effect",

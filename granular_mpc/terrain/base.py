@@ -24,7 +24,7 @@ from ..config import FootGeometry, GranularTerrainConfig, RigidTerrainConfig, Ro
 from ..exceptions import ConfigError
 from .closed_form import FLOAT, FootShape, lateral_capacity, sagittal_forces
 from .contact import CompiledContact, ContactData
-from .effects import Effect, get_effect
+from ..effects import Effect, get_effect
 from .granular import GRANULAR_PARAMS, granular_param_values, make_granular_law
 from .rft import Coefficients
 from .rigid import RIGID_PARAMS, make_rigid_law, rigid_param_values

@@ -27,7 +27,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .effects import Effect, PatchState
+from ..effects import Effect, PatchState
 
 #: per-foot kinematic input: p_W_F (3), R_W_F column-major (9), v_W_F (3), ω_W (3)
 N_KIN = 18

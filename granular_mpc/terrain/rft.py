@@ -17,7 +17,9 @@ Conventions (the paper's Fig. 2 of Li 2013):
 
 Outside those ranges the values are folded (wrap to (−π, π]; β ± π; mirror x → −x for
 |γ| > π/2, keeping α_z and negating α_x). The generic coefficients are normalised so that
-α_z(0, π/2) = 1; a medium is described by the scale ζ (α = ζ·α_generic, in N/cm³).
+α_z(0, π/2) = 1; a medium is described by the scale ζ (α = ζ·α_generic, in N/cm³). The
+coefficients (:class:`Coefficients`, :data:`GENERIC`) are defined in
+:mod:`granular_mpc.rft_coefficients` and re-exported here.
 
 Everything here is plain float math (fast in the plant loop); :mod:`.closed_form` uses the
 same trig polynomial, written for any backend, to build CasADi expressions.
@@ -26,30 +28,10 @@ same trig polynomial, written for any backend, to build CasADi expressions.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+
+from ..rft_coefficients import GENERIC, Coefficients
 
 N_PER_CM3 = 1.0e6  # 1 N/cm³ = 1e6 N/m³
-
-
-class Coefficients(NamedTuple):
-    """The nine Fourier coefficients of the generic RFT set [N/cm³]."""
-
-    A00: float = 0.206
-    A10: float = 0.169
-    B11: float = 0.212
-    B01: float = 0.358
-    Bm11: float = 0.055
-    C11: float = -0.124
-    C01: float = 0.253
-    Cm11: float = 0.007
-    D10: float = 0.088
-
-    @classmethod
-    def from_config(cls, cfg) -> "Coefficients":
-        return cls(cfg.A00, cfg.A10, cfg.B11, cfg.B01, cfg.Bm11, cfg.C11, cfg.C01, cfg.Cm11, cfg.D10)
-
-
-GENERIC = Coefficients()
 
 
 def _wrap(angle: float) -> float:

@@ -84,6 +84,24 @@ class Calibration:
         }
         return out
 
+    @classmethod
+    def from_json(cls, data: dict) -> "Calibration":
+        """The calibration from its :meth:`to_json` form (``values`` as written there)."""
+        return cls(values=dict(data["values"]), initial=dict(data["initial"]),
+                   se_gn=dict(data.get("se_gn", {})), ci_gn=dict(data.get("ci_gn", {})),
+                   ci_boot=dict(data.get("ci_bootstrap", {})),
+                   n_samples=int(data.get("n_samples", 0)),
+                   n_stances=int(data.get("n_stances", 0)),
+                   rmse_before=_float(data.get("rmse_before_N")),
+                   rmse_after=_float(data.get("rmse_after_N")),
+                   correlation=_float(data.get("correlation_zeta_phi")),
+                   identified=dict(data.get("identified", {})), note=data.get("note", ""))
+
+
+def _float(x) -> float:
+    """A JSON number (None: NaN, which JSON cannot hold)."""
+    return float("nan") if x is None else float(x)
+
 
 def sinking_samples(windows: Sequence[StanceWindow], *, min_rate: float = 0.2,
                     min_depth: float = 2e-3, min_force: float = 10.0) -> dict:

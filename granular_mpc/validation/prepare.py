@@ -40,23 +40,24 @@ import numpy as np
 import pandas as pd
 import pinocchio as pin
 
+from ..columns import (AXES, BASE_ANGULAR_VELOCITY, BASE_LINEAR_VELOCITY, BASE_POSITION,
+                       BASE_QUATERNION, GRF_COLUMNS, INTRUSION_COLUMNS, STANCE, TIME,
+                       joint_columns)
 from ..robot.model import SIDES, Biped
+from ..rotations import matrix_from_quat_wxyz
 from .dataformat import Dataset, stance_phases
-
-#: the channels a replay is scored on (format-v1 names)
-AXES = ("x", "y", "z")
 
 
 def channel_names(joint_names: Sequence[str]) -> list[str]:
-    """Scored channels: each joint angle, GRF x/y/z, intrusion x/y/z."""
-    return ([f"q_{j}" for j in joint_names] + [f"grf_{a}" for a in AXES]
-            + [f"intrusion_{a}" for a in AXES])
+    """Scored channels (format-v1 names): each joint angle, GRF x/y/z, intrusion x/y/z."""
+    return joint_columns(joint_names, "q") + list(GRF_COLUMNS) + list(INTRUSION_COLUMNS)
 
 
 CHANNEL_UNITS = {"q": "rad", "grf": "N", "intrusion": "m"}
 
 
 def channel_unit(ch: str) -> str:
+    """Unit of a scored channel (``rad``, ``N`` or ``m``; ``""`` if unknown)."""
     return CHANNEL_UNITS.get(ch.split("_")[0], "")
 
 
@@ -172,27 +173,27 @@ class TrialStates:
         self.n = len(df)
         J = list(joint_names)
         dt = 1.0 / fs
-        qa = df[[f"q_{j}" for j in J]].to_numpy(dtype=float)
+        qa = df[joint_columns(J, "q")].to_numpy(dtype=float)
         self.qa_raw = qa
-        self.dqa_meas = df[[f"dq_{j}" for j in J]].to_numpy(dtype=float)
+        self.dqa_meas = df[joint_columns(J, "dq")].to_numpy(dtype=float)
         self.window = window
         self.dt = dt
         self.qa = _savgol(qa, window)
         self.dqa = _savgol(qa, window, deriv=1, delta=dt)
-        self.tau = df[[f"tau_{j}" for j in J]].to_numpy(dtype=float)
-        self.p_raw = df[["base_x", "base_y", "base_z"]].to_numpy(dtype=float)
+        self.tau = df[joint_columns(J, "tau")].to_numpy(dtype=float)
+        self.p_raw = df[list(BASE_POSITION)].to_numpy(dtype=float)
         self.p = _savgol(self.p_raw, window)
-        quat = df[["base_qw", "base_qx", "base_qy", "base_qz"]].to_numpy(dtype=float)
+        quat = df[list(BASE_QUATERNION)].to_numpy(dtype=float)
         quat = quat * np.sign(quat[:, :1] + (quat[:, :1] == 0))
         self.quat_raw = quat / np.linalg.norm(quat, axis=1, keepdims=True)
         quat = _savgol(quat, window)
         self.quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)     # w x y z
-        self.v_W = _savgol(df[["base_vx", "base_vy", "base_vz"]].to_numpy(dtype=float), window)
-        self.w_B = _savgol(df[["base_wx", "base_wy", "base_wz"]].to_numpy(dtype=float), window)
-        self.time = df["time"].to_numpy(dtype=float)
-        self.labels = df["stance"].astype(str).to_numpy()
-        self.grf = df[["grf_x", "grf_y", "grf_z"]].to_numpy(dtype=float)
-        self.intr = df[["intrusion_x", "intrusion_y", "intrusion_z"]].to_numpy(dtype=float)
+        self.v_W = _savgol(df[list(BASE_LINEAR_VELOCITY)].to_numpy(dtype=float), window)
+        self.w_B = _savgol(df[list(BASE_ANGULAR_VELOCITY)].to_numpy(dtype=float), window)
+        self.time = df[TIME].to_numpy(dtype=float)
+        self.labels = df[STANCE].astype(str).to_numpy()
+        self.grf = df[list(GRF_COLUMNS)].to_numpy(dtype=float)
+        self.intr = df[list(INTRUSION_COLUMNS)].to_numpy(dtype=float)
         # within-run smoothing of the stance-foot channels
         self.grf_s = np.zeros_like(self.grf)
         self.intr_s = np.zeros_like(self.intr)
@@ -230,8 +231,7 @@ class TrialStates:
         return self.biped.q_from_parts(self.p_raw[k], [x, y, z, w], self.qa_raw[k])
 
     def v(self, k: int, dqa: np.ndarray | None = None) -> np.ndarray:
-        w, x, y, z = self.quat[k]
-        R = pin.Quaternion(w, x, y, z).matrix()
+        R = matrix_from_quat_wxyz(self.quat[k])
         v = np.zeros(self.biped.model.nv)
         v[0:3] = R.T @ self.v_W[k]
         v[3:6] = self.w_B[k]
@@ -380,10 +380,10 @@ def stance_windows(ds: Dataset, biped: Biped, *, contact_stiffness: float = 2.0e
             r0 = k0 + 1                           # first predicted (scored) row
             t_ph = st.time[a:b]
             t = st.time[r0:b] - st.time[a]
-            meas = {f"q_{j}": df[f"q_{j}"].to_numpy(dtype=float)[r0:b] for j in J}
-            for k, ax in enumerate(AXES):
-                meas[f"grf_{ax}"] = st.grf[r0:b, k].copy()
-                meas[f"intrusion_{ax}"] = st.intr[r0:b, k].copy()
+            meas = {c: df[c].to_numpy(dtype=float)[r0:b] for c in joint_columns(J, "q")}
+            for k, (g, i_) in enumerate(zip(GRF_COLUMNS, INTRUSION_COLUMNS)):
+                meas[g] = st.grf[r0:b, k].copy()
+                meas[i_] = st.intr[r0:b, k].copy()
             kin = _foot_kinematics(biped, data, st, side, r0, b)
             pin.framesForwardKinematics(biped.model, data, q0)
             depth = st.intr_s[r0:b, 2]

@@ -8,7 +8,7 @@ the seed, the effects *with all their true parameter values*, the noise and the 
 terrain parameters — for tests that check what the workbench recovers. The workbench
 (``validate`` / ``diagnose``) never reads the ``generator`` block.
 
-Effects dispatch by kind (:mod:`granular_mpc.terrain.effects_library`):
+Effects dispatch by kind (:mod:`granular_mpc.effects`):
 
 * ``terrain_force``: compiled into the plant's terrain (``extra_effects``);
 * ``joint``: the plant's joint-effect hook (``Plant.joint_effects``);
@@ -23,53 +23,37 @@ that foot's force and intrusion; contacts shorter than 20 samples (40 ms at 500 
 scuff of the swing foot) are ignored and a foot off the ground for at most 10 samples has
 bounced, not lifted off.
 
-**Noise model** (``noise=level``; level 1 = a realistic laboratory set-up, 0 = none):
-
-=====================  =====================================================================
-column                 noise (σ at level 1; scales with the level)
-=====================  =====================================================================
-``q_*``                encoder: white, 1e-3 rad
-``dq_*``               differentiated encoder noise: backward difference of the q noise,
-                       low-passed (2nd-order Butterworth, 80 Hz): ≈ 0.2 rad/s
-``tau_*``              motor-current torque: white, 3 % of |τ| + 0.02 N·m
-``grf_*``              foot force sensor: white, 1 N + 1 % of |F| (stance rows only)
-``base_x,y,z``         motion capture: white, 1 mm
-``base_q*``            motion capture: white rotation vector, 0.5° per axis (renormalised)
-``base_v*``            state estimate: low-passed (40 Hz) noise, 0.02 m/s
-``base_w*``            IMU gyro: white, 0.01 rad/s
-``intrusion_*``        foot marker: white, 1 mm (stance rows only)
-=====================  =====================================================================
-
-``noise`` may instead be a mapping: ``{"level": L}`` selects the model above and any other
-key ``PREFIX: σ`` replaces the model by white Gaussian noise of σ (column units) on the
-columns starting with PREFIX (longest prefix wins) — the ``--noise PREFIX=STD`` of the
-command line.
+**Noise**: the realistic sensor-noise model and per-column white noise of
+:mod:`.sensor_noise` (``NOISE_MODEL``, ``add_noise``, ``normalise_noise`` are re-exported
+here).
 """
 
 from __future__ import annotations
 
-import math
-import os
-from concurrent.futures import ProcessPoolExecutor
+import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
+import yaml
+from threadpoolctl import threadpool_limits
 
+from ..columns import (BASE_COLUMNS, FOOT_SIDES, GRF_COLUMNS, INTRUSION_COLUMNS, JOINT_KINDS,
+                       META_FILE, STANCE, TIME, foot_column, format_columns, joint_columns)
 from ..config import EffectSpec, ScenarioConfig
+from ..control.gait import CommandRamp
+from ..dynamics import Plant
+from ..effects import (SensorContext, apply_sensor_effects, effect_info, geometry_theta,
+                       joint_torque_function)
 from ..exceptions import ConfigError, GranularMpcError, OutputError
-from ..terrain.effects_library import (SensorContext, apply_sensor_effects, effect_info,
-                                       geometry_theta, joint_torque_function)
-from .dataformat import META_FILE, format_columns
-
-#: default noise standard deviations at level 1 (see the module docstring)
-NOISE_MODEL = {
-    "q": 1e-3, "dq_cutoff_hz": 80.0, "tau_rel": 0.03, "tau_abs": 0.02, "grf_abs": 1.0,
-    "grf_rel": 0.01, "base_pos": 1e-3, "base_rot_deg": 0.5, "base_v": 0.02,
-    "base_v_cutoff_hz": 40.0, "base_w": 0.01, "intrusion": 1e-3,
-}
+from ..parallel import map_tasks
+from ..runner import build_simulation, closed_loop
+from ..scenario import find_scenario, load_scenario, resolved_dict, scenario_from_dict
+from ..terrain import build_terrain
+from .dataformat import check_trials, load_dataset, write_dataset
+from .sensor_noise import NOISE_MODEL, add_noise, normalise_noise
 
 #: contacts shorter than this many samples (a scuff of the swing foot) do not start a
 #: stance phase
@@ -99,12 +83,9 @@ class SynthResult:
 
 # ----------------------------------------------------------------------------- helpers
 def _scenario(scenario_or_name: ScenarioConfig | str | Path, overrides: Sequence[str]):
-    from ..scenario import find_scenario, load_scenario
-
     if isinstance(scenario_or_name, ScenarioConfig):
         sc = scenario_or_name
         if overrides:
-            from ..scenario import resolved_dict, scenario_from_dict
             sc = scenario_from_dict(resolved_dict(sc), list(overrides))
         return sc, None
     path = find_scenario(scenario_or_name)
@@ -136,10 +117,6 @@ def build_plant_simulation(scenario: ScenarioConfig, effects: Sequence[Any] = ()
     Terrain-force effects are compiled into the plant terrain, geometry effects set its
     terrain parameters, joint effects go to the plant's joint-effect hook.
     """
-    from ..dynamics import Plant
-    from ..runner import build_simulation
-    from ..terrain import build_terrain
-
     resolved = resolve_effects(effects)
     terrain_specs = [EffectSpec(name=i.name, params=p) for i, p in resolved
                      if i.kind == "terrain_force"]
@@ -211,118 +188,24 @@ def leading_foot_labels(left: np.ndarray, right: np.ndarray,
     return out
 
 
-def _butter_lowpass(x: np.ndarray, cutoff_hz: float, fs: float) -> np.ndarray:
-    """Causal 2nd-order Butterworth low-pass along axis 0."""
-    from scipy.signal import butter, lfilter
-
-    wn = min(cutoff_hz / (0.5 * fs), 0.99)
-    b, a = butter(2, wn)
-    return lfilter(b, a, x, axis=0)
-
-
-def _quat_noise(quat_wxyz: np.ndarray, sigma_rad: float, rng) -> np.ndarray:
-    """Perturb unit quaternions (w, x, y, z) by a random body rotation of σ per axis."""
-    n = quat_wxyz.shape[0]
-    rv = rng.normal(0.0, sigma_rad, size=(n, 3))
-    ang = np.linalg.norm(rv, axis=1)
-    half = 0.5 * ang
-    with np.errstate(invalid="ignore", divide="ignore"):
-        s = np.where(ang > 1e-12, np.sin(half) / np.where(ang > 0, ang, 1.0), 0.5)
-    dq = np.column_stack([np.cos(half), rv * s[:, None]])
-    w1, x1, y1, z1 = quat_wxyz.T
-    w2, x2, y2, z2 = dq.T
-    out = np.column_stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-                           w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                           w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-                           w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
-    out /= np.linalg.norm(out, axis=1, keepdims=True)
-    out *= np.sign(out[:, :1] + (out[:, :1] == 0))
-    return out
-
-
-def normalise_noise(noise: float | Mapping[str, float] | None) -> tuple[float, dict[str, float]]:
-    """(level of the realistic model, per-prefix white-noise overrides)."""
-    if noise is None:
-        return 1.0, {}
-    if isinstance(noise, (int, float)):
-        if noise < 0 or not math.isfinite(noise):
-            raise ConfigError(f"noise level must be a finite number ≥ 0, got {noise}", key="noise")
-        return float(noise), {}
-    items = dict(noise)
-    level = float(items.pop("level", 0.0 if items else 1.0))
-    for k, v in items.items():
-        if not (float(v) >= 0.0 and math.isfinite(float(v))):
-            raise ConfigError(f"noise {k!r}: the standard deviation must be ≥ 0", key="noise")
-    if level < 0:
-        raise ConfigError("noise level must be ≥ 0", key="noise.level")
-    return level, {k: float(v) for k, v in items.items()}
-
-
-def add_noise(df: pd.DataFrame, joint_names: Sequence[str], level: float,
-              white: Mapping[str, float], rng: np.random.Generator,
-              sample_rate_hz: float) -> pd.DataFrame:
-    """A copy of the format-v1 frame ``df`` with sensor noise (see the module docstring)."""
-    out = df.copy()
-    n = len(df)
-    stance = (df["stance"].astype(str).to_numpy() != "none").astype(float)
-    L = float(level)
-    M = NOISE_MODEL
-    fs = sample_rate_hz
-    if L > 0:
-        qn = rng.normal(0.0, M["q"] * L, size=(n, len(joint_names)))
-        dqn = np.vstack([np.zeros((1, qn.shape[1])), np.diff(qn, axis=0) * fs])
-        dqn = _butter_lowpass(dqn, M["dq_cutoff_hz"], fs)
-        for k, j in enumerate(joint_names):
-            out[f"q_{j}"] = df[f"q_{j}"].to_numpy() + qn[:, k]
-            out[f"dq_{j}"] = df[f"dq_{j}"].to_numpy() + dqn[:, k]
-            tau = df[f"tau_{j}"].to_numpy()
-            out[f"tau_{j}"] = tau + rng.normal(0.0, 1.0, n) * L * (M["tau_rel"] * np.abs(tau)
-                                                                  + M["tau_abs"])
-        for ax in "xyz":
-            f = df[f"grf_{ax}"].to_numpy()
-            out[f"grf_{ax}"] = f + stance * rng.normal(0.0, 1.0, n) * L * (
-                M["grf_abs"] + M["grf_rel"] * np.abs(f))
-            out[f"intrusion_{ax}"] = (df[f"intrusion_{ax}"].to_numpy()
-                                      + stance * rng.normal(0.0, M["intrusion"] * L, n))
-            out[f"base_{ax}"] = df[f"base_{ax}"].to_numpy() + rng.normal(0.0, M["base_pos"] * L, n)
-        vn = _butter_lowpass(rng.normal(0.0, 1.0, size=(n, 3)), M["base_v_cutoff_hz"], fs)
-        vn *= M["base_v"] * L / max(float(np.std(vn)), 1e-12)
-        for k, ax in enumerate("xyz"):
-            out[f"base_v{ax}"] = df[f"base_v{ax}"].to_numpy() + vn[:, k]
-            out[f"base_w{ax}"] = df[f"base_w{ax}"].to_numpy() + rng.normal(0.0, M["base_w"] * L, n)
-        quat = df[["base_qw", "base_qx", "base_qy", "base_qz"]].to_numpy(dtype=float)
-        quat = _quat_noise(quat, math.radians(M["base_rot_deg"]) * L, rng)
-        out[["base_qw", "base_qx", "base_qy", "base_qz"]] = quat
-    for prefix, sigma in sorted(white.items(), key=lambda kv: len(kv[0])):
-        cols = [c for c in df.columns if c.startswith(prefix) and c not in ("time", "stance")]
-        for c in cols:
-            mask = stance if c.startswith(("grf_", "intrusion_")) else 1.0
-            out[c] = df[c].to_numpy(dtype=float) + mask * rng.normal(0.0, sigma, n)
-        if any(c.startswith("base_q") for c in cols):
-            quat = out[["base_qw", "base_qx", "base_qy", "base_qz"]].to_numpy(dtype=float)
-            quat /= np.linalg.norm(quat, axis=1, keepdims=True)
-            out[["base_qw", "base_qx", "base_qy", "base_qz"]] = quat
-    return out
-
-
 def _v1_frame(rows: list[dict], joint_names: Sequence[str]) -> pd.DataFrame:
     """Format-v1 columns (leading-foot stance labels) from closed-loop log rows."""
     log = pd.DataFrame.from_records(rows)
-    labels = leading_foot_labels(log["left_contact"].to_numpy(), log["right_contact"].to_numpy())
-    out = pd.DataFrame({"time": log["time"].to_numpy(dtype=float), "stance": labels})
+    labels = leading_foot_labels(*(log[foot_column(side, "contact")].to_numpy()
+                                   for side in FOOT_SIDES))
+    out = pd.DataFrame({TIME: log[TIME].to_numpy(dtype=float), STANCE: labels})
     for j in joint_names:
-        for pre in ("q_", "dq_", "tau_"):
-            out[pre + j] = log[pre + j].to_numpy(dtype=float)
-    for c in ("base_x", "base_y", "base_z", "base_qw", "base_qx", "base_qy", "base_qz",
-              "base_vx", "base_vy", "base_vz", "base_wx", "base_wy", "base_wz"):
+        for kind in JOINT_KINDS:
+            col = joint_columns([j], kind)[0]
+            out[col] = log[col].to_numpy(dtype=float)
+    for c in BASE_COLUMNS:
         out[c] = log[c].to_numpy(dtype=float)
-    for what in ("grf", "intrusion"):
-        for ax in "xyz":
-            val = np.zeros(len(log))
-            for side in ("left", "right"):
-                m = labels == side
-                val[m] = log[f"{side}_{what}_{ax}"].to_numpy(dtype=float)[m]
-            out[f"{what}_{ax}"] = val
+    for col in GRF_COLUMNS + INTRUSION_COLUMNS:
+        val = np.zeros(len(log))
+        for side in FOOT_SIDES:
+            m = labels == side
+            val[m] = log[foot_column(side, col)].to_numpy(dtype=float)[m]
+        out[col] = val
     return out[format_columns(joint_names)]
 
 
@@ -339,10 +222,6 @@ def _count_stances(labels: np.ndarray) -> int:
 # ----------------------------------------------------------------------------- one trial
 def _run_trial(payload: Mapping[str, Any]) -> dict:
     """Closed-loop walking of one trial (in a worker process). Returns the v1 frame."""
-    from threadpoolctl import threadpool_limits
-
-    from ..runner import closed_loop
-
     sc: ScenarioConfig = payload["scenario"]
     with threadpool_limits(limits=1):
         sim = build_plant_simulation(sc, payload["effects"])
@@ -357,18 +236,18 @@ def _run_trial(payload: Mapping[str, Any]) -> dict:
         else:
             note = ""
     fell_at = state.fall.time if state.fall is not None else None
-    t = np.array([r["time"] for r in rows])
+    t = np.array([r[TIME] for r in rows])
     t_end = t[-1] if len(t) else 0.0
     if fell_at is not None:
         t_end = fell_at - 0.5
         note = f"{payload['name']}: fell at t = {fell_at:.2f} s ({state.fall.reason}); " \
                "kept the data up to 0.5 s before"
     period = 1.0 / sc.log_rate_hz
-    keep = [r for r in rows if warmup - 1e-9 <= r["time"] <= t_end + 1e-9
-            and abs(r["time"] / period - round(r["time"] / period)) < 1e-3]   # log grid only
+    keep = [r for r in rows if warmup - 1e-9 <= r[TIME] <= t_end + 1e-9
+            and abs(r[TIME] / period - round(r[TIME] / period)) < 1e-3]   # log grid only
     frame = _v1_frame(keep, sim.biped.joint_names) if len(keep) > 2 else None
     if frame is not None:
-        frame["time"] = frame["time"] - frame["time"].iloc[0]
+        frame[TIME] = frame[TIME] - frame[TIME].iloc[0]
     return {"name": payload["name"], "frame": frame, "note": note, "warmup": warmup,
             "joint_names": list(sim.biped.joint_names)}
 
@@ -410,11 +289,7 @@ def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Pat
     Returns:
         :class:`SynthResult`.
     """
-    import time as _time
-
-    from .dataformat import write_dataset
-
-    t_wall = _time.perf_counter()
+    t_wall = time.perf_counter()
     sc, path = _scenario(scenario_or_name, overrides)
     if sc.mode != "walk":
         raise ConfigError("synth needs a walking scenario", key="mode", value=sc.mode,
@@ -433,8 +308,6 @@ def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Pat
     if duration is None:
         duration = (10 if steps is None else int(steps)) * half_period + 2.5 * half_period
     children = np.random.SeedSequence(int(seed)).spawn(len(speeds) * int(repeats))
-    from ..control.gait import CommandRamp
-
     payloads = []
     k = 0
     for v in speeds:
@@ -454,12 +327,10 @@ def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Pat
             payloads.append({"name": name, "scenario": scv, "effects": specs, "speed": v,
                              "warmup": w, "seed": run_seed})
             k += 1
-    n_workers = workers or min(len(payloads), os.cpu_count() or 1)
-    if n_workers > 1 and len(payloads) > 1:
-        with ProcessPoolExecutor(max_workers=n_workers) as ex:
-            results = list(ex.map(_run_trial, payloads))
-    else:
-        results = [_run_trial(p) for p in payloads]
+    run = map_tasks(_run_trial, payloads, workers=workers or None)
+    if run.interrupted:               # Ctrl-C: nothing is written
+        raise KeyboardInterrupt
+    results = list(run.results)
     joint_names = results[0]["joint_names"]
     fs = float(sc.log_rate_hz)
     trials: dict[str, pd.DataFrame] = {}
@@ -470,20 +341,20 @@ def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Pat
         if res["note"]:
             notes.append(res["note"])
         frame = res["frame"]
-        if frame is None or _count_stances(frame["stance"].to_numpy()) < 1:
+        if frame is None or _count_stances(frame[STANCE].to_numpy()) < 1:
             notes.append(f"{p['name']}: no complete stance recorded; trial dropped")
             continue
-        ctx = SensorContext(frame["stance"].to_numpy().astype(str),
-                            frame["time"].to_numpy(dtype=float), tuple(joint_names))
-        cols = {c: frame[c].to_numpy() for c in frame.columns if c not in ("stance",)}
+        ctx = SensorContext(frame[STANCE].to_numpy().astype(str),
+                            frame[TIME].to_numpy(dtype=float), tuple(joint_names))
+        cols = {c: frame[c].to_numpy() for c in frame.columns if c != STANCE}
         changed = apply_sensor_effects(cols, resolved, ctx)
         for c, v in changed.items():
-            if c in frame.columns and c not in ("time", "stance"):
+            if c in frame.columns and c not in (TIME, STANCE):
                 frame[c] = v
         rng = np.random.default_rng(child.spawn(1)[0])
         frame = add_noise(frame, joint_names, level, white, rng, fs)
         trials[p["name"]] = frame
-        n_st[p["name"]] = _count_stances(frame["stance"].to_numpy())
+        n_st[p["name"]] = _count_stances(frame[STANCE].to_numpy())
         entries[p["name"]] = {"commanded_speed_mps": p["speed"],
                               "description": f"synthetic, plant seed {p['seed']}"}
     if not trials:
@@ -520,8 +391,6 @@ def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Pat
     }
     # a run that went wild before it counted as a fall can break the format's plausibility
     # checks: cut such a trial 0.5 s before its first problem (or drop it)
-    from .dataformat import check_trials
-
     suffix = ".csv" if format == "csv" else ".parquet"
     for _ in range(3):
         meta["trials"] = {n: {**e, "file": f"{n}{suffix}"} for n, e in entries.items()}
@@ -539,9 +408,9 @@ def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Pat
             why = "; ".join(f"{p.column}: {p.message}" for p in probs)[:300]
             keep = None
             if rows:
-                t_cut = float(df["time"].iloc[min(max(min(rows) - 1, 0), len(df) - 1)]) - 0.5
-                keep = df[df["time"] <= t_cut].reset_index(drop=True)
-            if keep is None or len(keep) < 3 or _count_stances(keep["stance"].to_numpy()) < 1:
+                t_cut = float(df[TIME].iloc[min(max(min(rows) - 1, 0), len(df) - 1)]) - 0.5
+                keep = df[df[TIME] <= t_cut].reset_index(drop=True)
+            if keep is None or len(keep) < 3 or _count_stances(keep[STANCE].to_numpy()) < 1:
                 notes.append(f"{name}: dropped ({why})")
                 trials.pop(name)
                 entries.pop(name, None)
@@ -549,7 +418,7 @@ def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Pat
             else:
                 notes.append(f"{name}: cut at t = {t_cut:.2f} s ({why})")
                 trials[name] = keep
-                n_st[name] = _count_stances(keep["stance"].to_numpy())
+                n_st[name] = _count_stances(keep[STANCE].to_numpy())
         meta["trials"] = {n: {**e, "file": f"{n}{suffix}"} for n, e in entries.items()}
         if not trials:
             raise GranularMpcError("synth recorded no usable trial: " + "; ".join(notes))
@@ -557,7 +426,7 @@ def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Pat
     _clear_previous(out)
     write_dataset(out, meta, trials, format, overwrite=True)
     return SynthResult(out, {n: e["commanded_speed_mps"] for n, e in entries.items()}, n_st,
-                       tuple(notes), _time.perf_counter() - t_wall)
+                       tuple(notes), time.perf_counter() - t_wall)
 
 
 def noisy_copy(src: str | Path, dst: str | Path, noise: float | Mapping[str, float], *,
@@ -565,8 +434,6 @@ def noisy_copy(src: str | Path, dst: str | Path, noise: float | Mapping[str, flo
     """Write a copy of data set ``src`` with sensor noise added (same model as
     :func:`synthesize`); ``generator.noise`` and ``generator.seed`` record it. Handy to
     study one plant run at several noise levels."""
-    from .dataformat import load_dataset, write_dataset
-
     ds = load_dataset(src)
     level, white = normalise_noise(noise)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 7919]))
@@ -587,8 +454,6 @@ def _clear_previous(folder: Path) -> None:
     meta = folder / META_FILE
     if not meta.is_file():
         return
-    import yaml
-
     try:
         data = yaml.safe_load(meta.read_text(encoding="utf-8")) or {}
         for entry in (data.get("trials") or {}).values():

@@ -1,7 +1,13 @@
-"""Visualisation: paper-style figures (:mod:`.plots`).
+"""Visualisation: paper-style figures and Meshcat views.
 
-Names are imported lazily so that ``import granular_mpc.viz.<module>`` does not pull in
-matplotlib unless a plotting function is used.
+* :mod:`.plots` — figures of a run and of a sweep (``make_run_plots``, Fig. 4 and 6);
+  :mod:`.validation_plots` — workbench figures (model vs measurement, RMSE, residuals),
+  re-exported by :mod:`.plots`; :mod:`.figures` — the shared figure plumbing.
+* :mod:`.meshcat` — live viewer, standalone HTML page and run-folder replay (a package,
+  one job per module).
+
+Names are imported lazily so that ``import granular_mpc.viz`` pulls in neither matplotlib
+nor meshcat until a function that needs it is used.
 """
 from importlib import import_module
 

@@ -5,9 +5,8 @@ Every ``plot_*`` function takes tidy inputs, draws one figure, saves it as PNG w
 exactly as plotted** (values in the plotted unit, named in a ``unit`` column or the
 docstring), so tests and users can check or re-plot the numbers.
 
-Figures never touch pyplot's global state: they are :class:`matplotlib.figure.Figure`
-objects rendered by the Agg canvas, so nothing is ever displayed and the caller's
-backend is left alone.
+Figures never touch pyplot's global state (:mod:`.figures`): nothing is ever displayed
+and the caller's backend is left alone.
 
 Figures (paper numbering, ``../shared/paper``):
 
@@ -20,72 +19,39 @@ Figures (paper numbering, ``../shared/paper``):
 * :func:`plot_cot_vs_speed` — Fig. 6d: CoT against v/√(g h_CoM) per terrain, 2nd-order
   fits, and the CoT ratio to a reference terrain.
 * :func:`plot_model_vs_measurement`, :func:`plot_rmse_vs_speed` (Fig. 5),
-  :func:`plot_residual_heatmap` — validation.
+  :func:`plot_residual_heatmap` — validation; defined in :mod:`.validation_plots`,
+  re-exported here.
 * :func:`make_run_plots` — the standard set for one run.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
-from matplotlib.figure import Figure
 
 from ..analysis.cot import estimate_weight_from_grf, stance_cumulative_cot
 from ..analysis.metrics import (ID_COL, PHASE_COL, leg_joint_roles, phase_bands,
                                 resample_by_phase, resample_stances, segment_stances)
 from ..analysis.rolling import DEFAULT_MIN_RATE, rolling_from_log
-from ..exceptions import OutputError
-
-DPI = 120
-_PALETTE = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2",
-            "#17becf", "#7f7f7f", "#bcbd22")
-_PHASE_LABEL = "stance phase [%]"
-
-
-@dataclass(frozen=True)
-class PlotOutput:
-    """A drawn figure: where it was saved (None if not saved) and the plotted data."""
-
-    path: Path | None
-    data: pd.DataFrame | dict
+from ..columns import (BASE_POSITION, BASE_QUATERNION, COM_POSITION, COM_VELOCITY,
+                       FOOT_CONTACT, FOOT_POINT, FOOT_SIDES, TIME, foot_column)
+from ..rotations import rpy_rows_from_quat_wxyz
+from .figures import DPI, PALETTE, PHASE_LABEL, PlotOutput, draw_band, new_figure, save_figure
+from .validation_plots import (plot_model_vs_measurement, plot_residual_heatmap,
+                               plot_rmse_vs_speed)
 
 
 # --------------------------------------------------------------------------- helpers
-def _figure(nrows: int, ncols: int, width: float, height: float):
-    fig = Figure(figsize=(width, height), layout="constrained")
-    axes = fig.subplots(nrows, ncols, squeeze=False)
-    return fig, axes
-
-
-def _save(fig: Figure, out_path: str | Path | None) -> Path | None:
-    if out_path is None:
-        return None
-    path = Path(out_path)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(path, dpi=DPI, format="png")
-    except OSError as exc:
-        raise OutputError(f"cannot write the figure {path}: {exc.strerror}") from None
-    return path
-
-
-def _draw_band(ax, x, centre, lo, hi, *, color, label, ls="-"):
-    ax.plot(x, centre, color=color, lw=1.8, ls=ls, label=label)
-    ax.fill_between(x, lo, hi, color=color, alpha=0.25, lw=0)
-
-
 def _band_panel(ax, bands: pd.DataFrame, channel: str, *, color, label, center="mean"):
     b = bands[bands["channel"] == channel]
     x = b[PHASE_COL].to_numpy()
     if center == "mean":
         m, sd = b["mean"].to_numpy(), b["sd"].fillna(0.0).to_numpy()
-        _draw_band(ax, x, m, m - sd, m + sd, color=color, label=label)
+        draw_band(ax, x, m, m - sd, m + sd, color=color, label=label)
     else:
-        _draw_band(ax, x, b["median"].to_numpy(), b["q25"].to_numpy(), b["q75"].to_numpy(),
+        draw_band(ax, x, b["median"].to_numpy(), b["q25"].to_numpy(), b["q75"].to_numpy(),
                    color=color, label=label)
     ax.set_xlim(0, 100)
     ax.grid(True, alpha=0.3)
@@ -130,17 +96,17 @@ def plot_joint_bands(log: pd.DataFrame, out_path: str | Path | None = None, *,
     bands["label"] = bands["channel"].map(labels)
     bands["unit"] = "rad"
     ncol = len(swing)
-    fig, axes = _figure(2, ncol, 3.6 * ncol, 6.0)
-    for row, (group, color) in enumerate(((swing, _PALETTE[0]), (stance, _PALETTE[1]))):
+    fig, axes = new_figure(2, ncol, 3.6 * ncol, 6.0)
+    for row, (group, color) in enumerate(((swing, PALETTE[0]), (stance, PALETTE[1]))):
         for j, ch in enumerate(group):
             ax = axes[row, j]
             _band_panel(ax, bands, ch, color=color, label=_n_note(segs))
             ax.set_title(labels[ch])
             ax.set_ylabel("joint angle [rad]")
-            ax.set_xlabel(_PHASE_LABEL)
+            ax.set_xlabel(PHASE_LABEL)
     axes[0, 0].legend(loc="best", fontsize=8)
     fig.suptitle("Joint angles over one stance (swing leg q1–3, stance leg q4–6)")
-    path = _save(fig, out_path)
+    path = save_figure(fig, out_path)
     return PlotOutput(path, bands)
 
 
@@ -155,16 +121,16 @@ def _xyz_bands(log, out_path, segments, n_phase, prefix, scale, unit, title, sym
     res.loc[res["side"] == "right", channels[1]] *= -1.0
     bands = phase_bands(res, channels)
     bands["unit"] = unit
-    fig, axes = _figure(1, 3, 11.0, 3.6)
+    fig, axes = new_figure(1, 3, 11.0, 3.6)
     for j, (ch, sym) in enumerate(zip(channels, symbols)):
         ax = axes[0, j]
-        _band_panel(ax, bands, ch, color=_PALETTE[j], label=_n_note(segs))
+        _band_panel(ax, bands, ch, color=PALETTE[j], label=_n_note(segs))
         ax.set_title(sym + (" (+ outward)" if j == 1 else ""))
-        ax.set_xlabel(_PHASE_LABEL)
+        ax.set_xlabel(PHASE_LABEL)
         ax.set_ylabel(f"{sym} [{unit}]")
     axes[0, 0].legend(loc="best", fontsize=8)
     fig.suptitle(title)
-    return PlotOutput(_save(fig, out_path), bands)
+    return PlotOutput(save_figure(fig, out_path), bands)
 
 
 def plot_grf_bands(log: pd.DataFrame, out_path: str | Path | None = None, *,
@@ -234,41 +200,42 @@ def plot_rolling_cot(log: pd.DataFrame, out_path: str | Path | None = None, *,
     bands["unit"] = bands["channel"].map({"dtheta_r": "deg", "r_eff": "m", "cot_cum": "-"})
     bands.attrs.update(weight_N=w, weight_source=w_src)
 
-    fig, axes = _figure(1, 3, 12.0, 3.8)
+    fig, axes = new_figure(1, 3, 12.0, 3.8)
     ax = axes[0, 0]
-    _band_panel(ax, bands, "dtheta_r", color=_PALETTE[0], label=_n_note(segs))
+    _band_panel(ax, bands, "dtheta_r", color=PALETTE[0], label=_n_note(segs))
     ax.axhline(0.0, color="k", lw=0.6)
     ax.set_title("(a) rolling angle Δθ_r")
     ax.set_ylabel("Δθ_r [deg] (negative: decreasing)")
     ax = axes[0, 1]
-    _band_panel(ax, bands, "r_eff", color=_PALETTE[2], center="median",
+    _band_panel(ax, bands, "r_eff", color=PALETTE[2], center="median",
                 label=f"median, IQR (NaN where |θ̇_r| < {min_rate:g} rad/s)")
     ax.set_title("(b) effective rolling radius")
     ax.set_ylabel("R_eff [m]")
     ax = axes[0, 2]
-    _band_panel(ax, bands, "cot_cum", color=_PALETTE[1], label=_n_note(segs))
+    _band_panel(ax, bands, "cot_cum", color=PALETTE[1], label=_n_note(segs))
     ax.set_title(f"(c) cumulative CoT ({cot_normalise}, {cot_mode} power)")
     ax.set_ylabel("CoT [-]")
     ax.text(0.02, 0.97, f"W_r = {w:.1f} N ({w_src})", transform=ax.transAxes, va="top",
             fontsize=8)
     for a in axes[0]:
-        a.set_xlabel(_PHASE_LABEL)
+        a.set_xlabel(PHASE_LABEL)
         a.legend(loc="lower left", fontsize=7)
     fig.suptitle("Foot rolling and cost of transport over one stance")
-    return PlotOutput(_save(fig, out_path), bands)
+    return PlotOutput(save_figure(fig, out_path), bands)
 
 
 # --------------------------------------------------------------------------- trajectories
 def trunk_rpy(log: pd.DataFrame) -> np.ndarray:
     """Trunk roll, pitch, yaw [rad] per row, R_W_B = Rz(yaw) Ry(pitch) Rx(roll).
 
-    From the columns ``base_qw, base_qx, base_qy, base_qz``; shape (n, 3).
+    The one place that turns a log's trunk quaternions into attitude angles: use it
+    rather than converting them again. From the columns ``base_qw, base_qx, base_qy,
+    base_qz`` (:data:`~granular_mpc.columns.BASE_QUATERNION`), each row scaled to unit
+    norm first (:func:`~granular_mpc.rotations.rpy_rows_from_quat_wxyz`); shape (n, 3).
     """
-    from scipy.spatial.transform import Rotation
-
-    quat = log[["base_qx", "base_qy", "base_qz", "base_qw"]].to_numpy(dtype=float)
-    ypr = Rotation.from_quat(quat).as_euler("ZYX")
-    return ypr[:, ::-1].copy()
+    quat = log[list(BASE_QUATERNION)].to_numpy(dtype=float)
+    quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+    return rpy_rows_from_quat_wxyz(quat)
 
 
 def plot_trajectories(log: pd.DataFrame, out_path: str | Path | None = None) -> PlotOutput:
@@ -280,38 +247,41 @@ def plot_trajectories(log: pd.DataFrame, out_path: str | Path | None = None) -> 
         ``roll, pitch, yaw`` [deg], ``com_vx`` [m/s] — as plotted.
     """
     rpy = np.degrees(trunk_rpy(log))
-    cols = ["time", "base_x", "base_y", "base_z", "com_x", "com_y", "com_z", "com_vx"]
-    data = log[cols].astype(float).reset_index(drop=True)
+    bx, by, bz = BASE_POSITION
+    cx, cy, cz = COM_POSITION
+    cvx = COM_VELOCITY[0]
+    data = log[[TIME, bx, by, bz, cx, cy, cz, cvx]].astype(float).reset_index(drop=True)
     data["roll"], data["pitch"], data["yaw"] = rpy[:, 0], rpy[:, 1], rpy[:, 2]
-    fig, axes = _figure(2, 2, 11.0, 7.0)
+    fig, axes = new_figure(2, 2, 11.0, 7.0)
     ax = axes[0, 0]
-    ax.plot(data.base_x, data.base_z, color=_PALETTE[0], label="trunk")
-    ax.plot(data.com_x, data.com_z, color=_PALETTE[1], label="CoM")
+    ax.plot(data[bx], data[bz], color=PALETTE[0], label="trunk")
+    ax.plot(data[cx], data[cz], color=PALETTE[1], label="CoM")
     ax.set_title("side view")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("z [m]")
     ax = axes[0, 1]
-    ax.plot(data.base_x, data.base_y, color=_PALETTE[0], label="trunk")
-    ax.plot(data.com_x, data.com_y, color=_PALETTE[1], label="CoM")
-    for k, side in enumerate(("left", "right")):
-        cx, cy, cc = f"{side}_px", f"{side}_py", f"{side}_contact"
-        if {cx, cy, cc} <= set(log.columns):
-            c = log[cc].to_numpy(dtype=float) > 0.5
+    ax.plot(data[bx], data[by], color=PALETTE[0], label="trunk")
+    ax.plot(data[cx], data[cy], color=PALETTE[1], label="CoM")
+    for k, side in enumerate(FOOT_SIDES):
+        px, py = (foot_column(side, key) for key in FOOT_POINT[:2])
+        contact = foot_column(side, FOOT_CONTACT)
+        if {px, py, contact} <= set(log.columns):
+            c = log[contact].to_numpy(dtype=float) > 0.5
             td = np.flatnonzero(c & ~np.concatenate(([False], c[:-1])))
-            ax.plot(log[cx].to_numpy()[td], log[cy].to_numpy()[td], ls="none",
-                    marker="s" if k == 0 else "o", ms=4, color=_PALETTE[2 + k],
+            ax.plot(log[px].to_numpy()[td], log[py].to_numpy()[td], ls="none",
+                    marker="s" if k == 0 else "o", ms=4, color=PALETTE[2 + k],
                     label=f"{side} touchdowns")
     ax.set_title("top view")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax = axes[1, 0]
     for k, name in enumerate(("roll", "pitch", "yaw")):
-        ax.plot(data.time, data[name], color=_PALETTE[k], label=name)
+        ax.plot(data[TIME], data[name], color=PALETTE[k], label=name)
     ax.set_title("trunk orientation (Z-Y-X Euler)")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("angle [deg]")
     ax = axes[1, 1]
-    ax.plot(data.time, data.com_vx, color=_PALETTE[1], label="v_CoM,x")
+    ax.plot(data[TIME], data[cvx], color=PALETTE[1], label="v_CoM,x")
     ax.set_title("forward CoM velocity")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("velocity [m/s]")
@@ -319,7 +289,7 @@ def plot_trajectories(log: pd.DataFrame, out_path: str | Path | None = None) -> 
         a.grid(True, alpha=0.3)
         a.legend(loc="best", fontsize=8)
     fig.suptitle("Trunk and centre-of-mass trajectories")
-    return PlotOutput(_save(fig, out_path), data)
+    return PlotOutput(save_figure(fig, out_path), data)
 
 
 # --------------------------------------------------------------------------- Fig. 6d
@@ -375,10 +345,10 @@ def plot_cot_vs_speed(sweep: pd.DataFrame, out_path: str | Path | None = None, *
     fits = []
     ratio_rows = []
     ref = agg[agg["terrain"] == reference_terrain]
-    fig, axes = _figure(1, 2, 11.0, 4.2)
+    fig, axes = new_figure(1, 2, 11.0, 4.2)
     ax = axes[0, 0]
     for k, (name, s) in enumerate(agg.groupby("series", sort=True)):
-        color = _PALETTE[k % len(_PALETTE)]
+        color = PALETTE[k % len(PALETTE)]
         ax.errorbar(s["v_dimless"], s["cot_mean"], yerr=s["cot_sd"].fillna(0.0), ls="none",
                     marker="o", capsize=3, color=color, label=name)
         ok = np.isfinite(s["v_dimless"]) & np.isfinite(s["cot_mean"])
@@ -410,7 +380,7 @@ def plot_cot_vs_speed(sweep: pd.DataFrame, out_path: str | Path | None = None, *
                 va="center", transform=ax.transAxes)
     for k, (name, s) in enumerate(ratio.groupby("series", sort=True)):
         ax.plot(s["commanded_speed_mps"], s["cot_ratio"], marker="o",
-                color=_PALETTE[(k + 1) % len(_PALETTE)], label=name)
+                color=PALETTE[(k + 1) % len(PALETTE)], label=name)
     ax.axhline(1.0, color="k", lw=0.6)
     ax.set_xlabel("commanded speed [m/s]")
     ax.set_ylabel(f"CoT / CoT_{reference_terrain} [-]")
@@ -420,184 +390,17 @@ def plot_cot_vs_speed(sweep: pd.DataFrame, out_path: str | Path | None = None, *
         ax.legend(loc="best", fontsize=8)
     fig.suptitle("Cost of transport against speed")
     fits_df = pd.DataFrame(fits, columns=["series", "coefficients", "x_min", "x_max"])
-    return PlotOutput(_save(fig, out_path), {"points": agg, "fits": fits_df, "ratio": ratio})
-
-
-# --------------------------------------------------------------------------- validation
-def plot_model_vs_measurement(bands: pd.DataFrame, out_path: str | Path | None = None, *,
-                              source_col: str = "source", measurement: str = "measurement",
-                              channels: Sequence[str] | None = None,
-                              units: Mapping[str, str] | None = None,
-                              ncols: int = 3) -> PlotOutput:
-    """Model(s) against measurement over the stance: mean ± sd bands per channel.
-
-    Args:
-        bands: tidy bands from :func:`~granular_mpc.analysis.metrics.phase_bands` with
-            ``by=[source_col]`` (one ``source`` per model, plus the measurement).
-        measurement: the value of ``source_col`` naming the measurement (drawn in black).
-        channels: channels to draw (default: all, in order of appearance).
-        units: channel → unit for the axis labels.
-
-    Returns:
-        :class:`PlotOutput`; ``data`` = the rows of ``bands`` drawn.
-    """
-    for c in (source_col, "channel", PHASE_COL, "mean", "sd"):
-        if c not in bands.columns:
-            raise ValueError(f"plot_model_vs_measurement: bands lack column {c!r}")
-    chans = list(dict.fromkeys(bands["channel"])) if channels is None else list(channels)
-    units = dict(units or {})
-    data = bands[bands["channel"].isin(chans)].reset_index(drop=True)
-    sources = list(dict.fromkeys(data[source_col]))
-    if measurement in sources:
-        sources.remove(measurement)
-        sources = [measurement] + sources
-    nc = min(ncols, len(chans))
-    nr = int(np.ceil(len(chans) / nc))
-    fig, axes = _figure(nr, nc, 3.8 * nc, 3.2 * nr)
-    for i, ch in enumerate(chans):
-        ax = axes[i // nc, i % nc]
-        for k, src in enumerate(sources):
-            b = data[(data["channel"] == ch) & (data[source_col] == src)]
-            color = "k" if src == measurement else _PALETTE[k % len(_PALETTE)]
-            m, sd = b["mean"].to_numpy(), b["sd"].fillna(0.0).to_numpy()
-            _draw_band(ax, b[PHASE_COL].to_numpy(), m, m - sd, m + sd, color=color,
-                       label=str(src), ls="--" if src == measurement else "-")
-        ax.set_title(ch)
-        ax.set_xlabel(_PHASE_LABEL)
-        ax.set_ylabel(f"{ch} [{units[ch]}]" if ch in units else ch)
-        ax.set_xlim(0, 100)
-        ax.grid(True, alpha=0.3)
-    for j in range(len(chans), nr * nc):
-        axes[j // nc, j % nc].set_visible(False)
-    axes[0, 0].legend(loc="best", fontsize=8)
-    fig.suptitle("Model vs measurement over the stance (mean ± sd)")
-    return PlotOutput(_save(fig, out_path), data)
-
-
-def plot_rmse_vs_speed(table: pd.DataFrame, out_path: str | Path | None = None, *,
-                       model_col: str = "model", speed_col: str = "commanded_speed_mps",
-                       channels: Sequence[str] | None = None,
-                       units: Mapping[str, str] | None = None, ncols: int = 3) -> PlotOutput:
-    """Whole-stance RMSE against commanded speed per model (paper Fig. 5), with the
-    bootstrap intervals as error bars.
-
-    Args:
-        table: rows of :func:`~granular_mpc.analysis.metrics.rmse_table` (computed with
-            ``phase_bins=None``) for several models, stacked with a ``model_col`` column.
-
-    Raises:
-        ValueError: if a (model, speed, channel) has more than one row (phase-binned input).
-    """
-    for c in (model_col, speed_col, "channel", "rmse"):
-        if c not in table.columns:
-            raise ValueError(f"plot_rmse_vs_speed: table lacks column {c!r}")
-    chans = list(dict.fromkeys(table["channel"])) if channels is None else list(channels)
-    data = table[table["channel"].isin(chans)].reset_index(drop=True)
-    if data.duplicated([model_col, speed_col, "channel"]).any():
-        raise ValueError("plot_rmse_vs_speed: several rows per (model, speed, channel); "
-                         "use rmse_table(..., phase_bins=None)")
-    units = dict(units or {})
-    models = list(dict.fromkeys(data[model_col]))
-    nc = min(ncols, len(chans))
-    nr = int(np.ceil(len(chans) / nc))
-    fig, axes = _figure(nr, nc, 3.8 * nc, 3.2 * nr)
-    markers = ("o", "s", "^", "D", "v")
-    for i, ch in enumerate(chans):
-        ax = axes[i // nc, i % nc]
-        for k, mdl in enumerate(models):
-            s = data[(data["channel"] == ch) & (data[model_col] == mdl)].sort_values(speed_col)
-            y = s["rmse"].to_numpy()
-            if {"ci_lo", "ci_hi"} <= set(s.columns):
-                lo = np.nan_to_num(y - s["ci_lo"].to_numpy())
-                hi = np.nan_to_num(s["ci_hi"].to_numpy() - y)
-                yerr = np.vstack([np.maximum(lo, 0), np.maximum(hi, 0)])
-            else:
-                yerr = None
-            ax.errorbar(s[speed_col], y, yerr=yerr, marker=markers[k % len(markers)],
-                        capsize=3, color=_PALETTE[k % len(_PALETTE)], label=str(mdl))
-        ax.set_title(ch)
-        ax.set_xlabel("commanded speed [m/s]")
-        ax.set_ylabel(f"RMSE [{units[ch]}]" if ch in units else "RMSE")
-        ax.grid(True, alpha=0.3)
-    for j in range(len(chans), nr * nc):
-        axes[j // nc, j % nc].set_visible(False)
-    axes[0, 0].legend(loc="best", fontsize=8)
-    fig.suptitle("One-stance RMSE against commanded speed (bars: bootstrap interval)")
-    return PlotOutput(_save(fig, out_path), data)
-
-
-def plot_residual_heatmap(table: pd.DataFrame, out_path: str | Path | None = None, *,
-                          value: str = "rmse", normalise: str | None = "channel",
-                          title: str | None = None) -> PlotOutput:
-    """Heatmap of an error measure by channel (rows) × stance-phase bin (columns).
-
-    Args:
-        table: one row per (channel, phase bin), e.g. :func:`rmse_table` output filtered to
-            one speed and one model (columns ``channel``, ``phase_lo``, ``phase_hi``,
-            ``value``).
-        value: the column to show (``rmse`` or ``bias``).
-        normalise: ``"channel"`` colours each row by value / max |value| of that channel
-            (channels have different units); None colours raw values. Cells are annotated
-            with the raw values either way.
-
-    Returns:
-        :class:`PlotOutput`; ``data`` = the pivot of raw values (index channel, columns
-        phase-bin start [%]).
-
-    Raises:
-        ValueError: if a (channel, bin) appears more than once (filter the other groups).
-    """
-    for c in ("channel", "phase_lo", "phase_hi", value):
-        if c not in table.columns:
-            raise ValueError(f"plot_residual_heatmap: table lacks column {c!r}")
-    if table.duplicated(["channel", "phase_lo"]).any():
-        raise ValueError("plot_residual_heatmap: several rows per (channel, phase bin); "
-                         "filter to one speed / model first")
-    order = list(dict.fromkeys(table["channel"]))
-    piv = table.pivot(index="channel", columns="phase_lo", values=value).reindex(order)
-    hi_edges = table.drop_duplicates("phase_lo").set_index("phase_lo")["phase_hi"]
-    raw = piv.to_numpy(dtype=float)
-    if normalise == "channel":
-        scale = np.nanmax(np.abs(raw), axis=1, keepdims=True)
-        scale[~(scale > 0)] = 1.0
-        shown = raw / scale
-        cbar_label = f"{value} / channel max"
-    elif normalise is None:
-        shown = raw
-        cbar_label = value
-    else:
-        raise ValueError("normalise must be 'channel' or None")
-    fig, axes = _figure(1, 1, max(6.0, 0.8 * raw.shape[1] + 3), max(3.0, 0.45 * raw.shape[0] + 1.5))
-    ax = axes[0, 0]
-    cmap = "RdBu_r" if value == "bias" else "viridis"
-    if value == "bias":
-        lim = np.nanmax(np.abs(shown)) or 1.0
-        im = ax.imshow(shown, aspect="auto", cmap=cmap, vmin=-lim, vmax=lim)
-    else:
-        im = ax.imshow(shown, aspect="auto", cmap=cmap)
-    ax.set_yticks(range(len(order)), labels=order)
-    ax.set_xticks(range(raw.shape[1]),
-                  labels=[f"{lo:g}–{hi_edges[lo]:g}" for lo in piv.columns], rotation=45)
-    for i in range(raw.shape[0]):
-        for j in range(raw.shape[1]):
-            if np.isfinite(raw[i, j]):
-                ax.text(j, i, f"{raw[i, j]:.3g}", ha="center", va="center", fontsize=7,
-                        color="w" if value != "bias" and shown[i, j] < 0.6 else "k")
-    ax.set_xlabel(_PHASE_LABEL)
-    ax.set_ylabel("channel")
-    fig.colorbar(im, ax=ax, label=cbar_label)
-    ax.set_title(title or f"{value} by channel and stance phase")
-    return PlotOutput(_save(fig, out_path), piv)
+    return PlotOutput(save_figure(fig, out_path), {"points": agg, "fits": fits_df, "ratio": ratio})
 
 
 # --------------------------------------------------------------------------- run set
 def _placeholder(out_path: Path, title: str, message: str) -> Path:
-    fig, axes = _figure(1, 1, 6.0, 3.0)
+    fig, axes = new_figure(1, 1, 6.0, 3.0)
     ax = axes[0, 0]
     ax.axis("off")
     ax.text(0.5, 0.5, message, ha="center", va="center", wrap=True, transform=ax.transAxes)
     fig.suptitle(title)
-    return _save(fig, out_path)
+    return save_figure(fig, out_path)
 
 
 def make_run_plots(log_df: pd.DataFrame, out_dir: str | Path, biped=None, *,
@@ -633,7 +436,7 @@ def make_run_plots(log_df: pd.DataFrame, out_dir: str | Path, biped=None, *,
 
 
 __all__ = [
-    "PlotOutput", "plot_joint_bands", "plot_grf_bands", "plot_intrusion_bands",
+    "DPI", "PlotOutput", "plot_joint_bands", "plot_grf_bands", "plot_intrusion_bands",
     "plot_rolling_cot", "trunk_rpy", "plot_trajectories", "plot_cot_vs_speed",
     "plot_model_vs_measurement", "plot_rmse_vs_speed", "plot_residual_heatmap",
     "make_run_plots",

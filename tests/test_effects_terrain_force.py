@@ -1,5 +1,6 @@
-"""Optional physical effects (granular_mpc.terrain.effects): registry, plugin files,
-config paths, and their forces in the contact function and the plant."""
+"""The library's terrain forces (granular_mpc.effects.terrain_force) and terrain forces in
+general: from config dicts and YAML strings into the contact function and the plant, the
+library's formulas on floats and compiled, config errors for names and parameters."""
 from __future__ import annotations
 
 import math
@@ -12,10 +13,10 @@ import pytest
 
 from granular_mpc.config import SimConfig, load_terrain, terrain_from_dict
 from granular_mpc.dynamics import Plant
+from granular_mpc.effects import Param, PatchState, effect_info, register_effect
 from granular_mpc.exceptions import ConfigError
 from granular_mpc.terrain import build_terrain
-from granular_mpc.terrain.effects import (Param, get_effect, load_effect_file, register_effect,
-                                          registered_effects)
+from granular_mpc.terrain.closed_form import FLOAT
 
 from test_contact import DT, step_foot
 
@@ -26,18 +27,6 @@ PUSH = f"test_constant_push_{uuid.uuid4().hex[:8]}"
 def _constant_push(o, s, p):
     """A constant upward push while the patch is in contact."""
     return (0.0, 0.0, p["f0"] * s.in_contact)
-
-
-def test_registered_effect_is_listed():
-    eff = get_effect(PUSH)
-    assert eff.name == PUSH and "f0" in eff.params
-    assert PUSH in registered_effects()
-    assert eff.doc.startswith("A constant upward push")
-
-
-def test_duplicate_registration_is_refused():
-    with pytest.raises(ConfigError, match="already registered"):
-        register_effect(PUSH)(_constant_push)
 
 
 def _terrain_with(robot_config, effects, base="dry_sand"):
@@ -160,31 +149,71 @@ def test_malformed_effect_string():
         terrain_from_dict({"kind": "granular", "effects": ["inertial_drag:c_d"]})
 
 
-def test_load_effect_file(tmp_path, robot_config):
-    name = f"user_sole_adhesion_{uuid.uuid4().hex[:8]}"
-    path = tmp_path / "my_effects.py"
-    path.write_text(textwrap.dedent(f'''\
-        from granular_mpc.terrain.effects import Param, register_effect
+def _state(**kw) -> PatchState:
+    base = dict(depth=0.02, in_contact=1.0, p_c=(0.0, 0.0, -0.02), v_c=(0.0, 0.0, 0.1),
+                a_c=(0.0, 0.0, 0.0), intrusion=(0.0, 0.0, 0.02), heading=(1.0, 0.0, 0.0),
+                lateral=(0.0, 1.0, 0.0), f_terrain=(3.0, -1.0, 60.0), f_yield_z=60.0,
+                area_h=2.0e-3, width=0.0315, density=1660.0, dt=5e-4, depth_max=0.025,
+                t_stance=0.1)
+    base.update(kw)
+    return PatchState(**base)
 
-        @register_effect("{name}", params={{"f0": Param(2.0, 0.0, 50.0, "N", "pull-off force")}})
-        def sole_adhesion(o, s, p):
-            """Constant pull toward the sand while the sole is buried and rising."""
-            rising = o.if_else(s.v_c[2] > 0.0, 1.0, 0.0)
-            return (0.0, 0.0, -p["f0"] * rising * s.in_contact)
-        '''))
-    assert load_effect_file(str(path)) == [name]
-    terrain = _terrain_with(robot_config, [{"name": name, "params": {"f0": 4.0}}])
-    plain = _terrain_with(robot_config, [])
+
+def test_cohesion_pulls_a_rising_sole_down():
+    f = effect_info("cohesion").fn
+    p = {"suction": 3000.0, "release": 0.003}
+    # at the deepest point: no pull; 3 mm above it: 1 − e⁻¹ of the full suction
+    assert f(FLOAT, _state(depth=0.025, depth_max=0.025), p) == (0.0, 0.0, 0.0) or \
+        abs(f(FLOAT, _state(depth=0.025, depth_max=0.025), p)[2]) < 1e-12
+    fz = f(FLOAT, _state(depth=0.022, depth_max=0.025), p)[2]
+    assert fz == pytest.approx(-3000.0 * 2.0e-3 * (1.0 - math.exp(-1.0)), rel=1e-12)
+
+
+def test_depth_hardening_scales_the_terrain_force_by_the_depth_power():
+    f = effect_info("depth_hardening").fn
+    s = _state(depth=0.04)
+    extra = f(FLOAT, s, {"n": 1.5, "d_ref": 0.02})
+    factor = (0.04 / 0.02) ** 0.5 - 1.0
+    np.testing.assert_allclose(extra, np.array(s.f_terrain) * factor, rtol=1e-12)
+    assert f(FLOAT, s, {"n": 1.0, "d_ref": 0.02}) == (0.0, 0.0, 0.0)     # neutral
+    np.testing.assert_allclose(f(FLOAT, _state(depth=0.02), {"n": 2.0, "d_ref": 0.02}), 0.0)
+
+
+def test_elastic_unloading_peaks_at_the_recovery_rise():
+    f = effect_info("elastic_unloading").fn
+    p = {"pressure": 4000.0, "recovery": 0.002}
+    rises = np.linspace(0.0, 0.01, 201)
+    fz = [f(FLOAT, _state(depth=0.025 - r, depth_max=0.025), p)[2] for r in rises]
+    k = int(np.argmax(fz))
+    assert rises[k] == pytest.approx(0.002, abs=1e-4)
+    assert max(fz) == pytest.approx(4000.0 * 2.0e-3, rel=1e-3)
+    assert fz[0] == 0.0
+
+
+@pytest.mark.parametrize("name,params", [("cohesion", {"suction": 5000.0}),
+                                         ("elastic_unloading", {"pressure": 8000.0}),
+                                         ("depth_hardening", {"n": 2.0})])
+def test_library_terrain_effects_compile_into_the_contact_function(robot_config, name, params):
+    """Same kinematics (a foot pressed 10 mm into sand, then lifted 2 mm): the compiled
+    effect changes the force as its float formula says (cohesion / unloading: only while
+    rising; hardening: while pressed)."""
+    data = dict(load_terrain("dry_sand").model_dump())
+    with_eff = build_terrain(terrain_from_dict({**data, "effects": [{"name": name,
+                                                                     "params": params}]}),
+                             robot_config)
+    plain = build_terrain(load_terrain("dry_sand"), robot_config)
     R = robot_config.foot.radius
     out = []
-    for t in (plain, terrain):
-        data = t.new_data(DT)
-        step_foot(data, [0.0, 0.0, R - 0.02], v=(0.0, 0.0, -0.1))
-        f, _ = step_foot(data, [0.0, 0.0, R - 0.02], v=(0.0, 0.0, 0.05))   # rising
-        out.append(f)
-    np.testing.assert_allclose(out[1] - out[0], [0.0, 0.0, -4.0 * robot_config.foot.slices], atol=1e-9)
-
-
-def test_load_effect_file_missing(tmp_path):
-    with pytest.raises(ConfigError, match="effect file not found"):
-        load_effect_file(str(tmp_path / "nope.py"))
+    for terrain in (plain, with_eff):
+        d = terrain.new_data(DT)
+        for k in range(25):                      # press to 10 mm
+            f_down, _ = step_foot(d, [0.0, 0.0, R - 0.0004 * k], v=(0.0, 0.0, -0.8))
+        for k in range(10):                      # rise 2 mm
+            f_up, _ = step_foot(d, [0.0, 0.0, R - 0.0096 + 0.0002 * k], v=(0.0, 0.0, 0.4))
+        out.append((f_down, f_up))
+    (d0, u0), (d1, u1) = out
+    if name == "depth_hardening":
+        assert d1[2] < d0[2]                     # 10 mm < d_ref = 20 mm: softer (n = 2)
+    else:
+        np.testing.assert_allclose(d1, d0, atol=1e-6)        # no effect while penetrating
+        assert (u1[2] - u0[2]) * (1 if name == "elastic_unloading" else -1) > 0.5

@@ -1,0 +1,238 @@
+"""The run summary (``summary.json``): averaging window, stance sinkage/slip, CoT, solver
+statistics.
+
+:func:`summarize` turns a run log and the run's final state into the summary dict that
+``granular-mpc run`` writes; its keys are the user-facing contract (:data:`SUMMARY_KEYS`,
+``docs/user-guide.md``). The pieces are usable on their own: :func:`averaging_window`
+(which part of the log the walking averages use), :func:`stance_metrics` (per-stance peak
+sinkage and slip), :func:`solve_time_stats` (median / p99 of solver times).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Callable, Sequence
+
+import numpy as np
+
+from ..columns import (COM_POSITION, FOOT_SIDES, INTRUSION_COLUMNS, STANCE, TIME,
+                       foot_column, joint_columns)
+from ..output import json_safe
+from . import cot_decoupled, cot_from_log, segment_stances
+
+if TYPE_CHECKING:  # the runner sits above analysis: types only, no import at run time
+    from ..runner.build import Simulation
+    from ..runner.state import LoopState
+
+#: Keys every summary.json holds (the user-facing contract, DESIGN.md).
+SUMMARY_KEYS = (
+    "terrain", "controller_terrain_model", "commanded_speed_mps", "mean_speed_mps",
+    "sim_time_s", "wall_time_s", "realtime_factor", "fell", "cot", "cot_decoupled",
+    "sinkage_peak_mm_mean", "slip_mm_mean", "mpc_solve_ms", "wbc_solve_ms", "qp_failures",
+    "lateral_drift_m", "max_roll_deg", "max_pitch_deg", "complete", "reason",
+)
+
+_COM_X, _COM_Y, _ = COM_POSITION
+_INTRUSION_X, _INTRUSION_Y, _INTRUSION_Z = INTRUSION_COLUMNS
+
+
+def solve_time_stats(values: Sequence[float]) -> dict:
+    """Median and 99th percentile of solver times.
+
+    Args:
+        values: solve times [ms].
+
+    Returns:
+        ``{"median", "p99", "n"}`` (median and p99 in ms, ``None`` without values).
+    """
+    if len(values) == 0:
+        return {"median": None, "p99": None, "n": 0}
+    a = np.asarray(values, dtype=float)
+    return {"median": float(np.median(a)), "p99": float(np.percentile(a, 99)), "n": int(a.size)}
+
+
+def averaging_window(sim: Simulation, t_first: float, t_last: float, ramp_duration: float
+                     ) -> tuple[float, float, str]:
+    """The window [a, b] [s] of the summary averages, and how it was chosen.
+
+    Walk: from ``command.start_delay`` + speed-ramp duration + ``metrics.settle`` to the
+    end of the log (the fall, if the run stopped there). If that leaves less than one gait
+    period, the second half of the log is used instead (``window_note`` says so). Drop:
+    the whole log.
+
+    Args:
+        sim: the simulation (its scenario and whether it has a walking controller).
+        t_first: time of the first log row [s].
+        t_last: time of the last log row [s].
+        ramp_duration: duration of the speed ramp [s].
+    """
+    sc = sim.scenario
+    if sim.controller is None:
+        return t_first, t_last, "whole run (drop test)"
+    a = sc.command.start_delay + ramp_duration + sc.metrics.settle
+    period = sc.controller.gait.period
+    if t_last - a >= period:
+        return a, t_last, ("after the speed ramp + settle: command.start_delay + ramp "
+                           f"({ramp_duration:.3f} s) + metrics.settle")
+    mid = t_first + 0.5 * (t_last - t_first)
+    return mid, t_last, ("second half of the log: the run ended less than one gait period "
+                         "after the speed ramp + metrics.settle")
+
+
+def stance_metrics(log, t_start: float | None = None) -> dict:
+    """Per-stance peaks of the stance foot's sinkage and slip, averaged over stances.
+
+    Stances: complete single-stance segments (:func:`granular_mpc.analysis.segment_stances`,
+    planned stance label and foot in contact) starting at or after ``t_start`` (all
+    complete stances if none does). Per stance: peak sinkage = max ``intrusion_z`` (z_s,
+    depth below the touchdown point, positive deeper); peak slip = max
+    ‖(``intrusion_x``, ``intrusion_y``)‖ (horizontal displacement of the contact point from
+    its touchdown point, which includes the rolling of the sole).
+
+    Returns:
+        ``sinkage_peak_mm_mean``, ``slip_mm_mean`` [mm] (None without stances), ``n_stances``.
+    """
+    segs = segment_stances(log)
+    if t_start is not None and len(segs):
+        later = segs[segs["t_start"] >= t_start - 1e-9]
+        if len(later):
+            segs = later
+    if len(segs) == 0:
+        return {"sinkage_peak_mm_mean": None, "slip_mm_mean": None, "n_stances": 0}
+    z = log[_INTRUSION_Z].to_numpy(dtype=float)
+    xy = np.hypot(log[_INTRUSION_X].to_numpy(dtype=float),
+                  log[_INTRUSION_Y].to_numpy(dtype=float))
+    sink = [z[s.row_start:s.row_stop].max() for s in segs.itertuples(index=False)]
+    slip = [xy[s.row_start:s.row_stop].max() for s in segs.itertuples(index=False)]
+    return {"sinkage_peak_mm_mean": 1e3 * float(np.mean(sink)),
+            "slip_mm_mean": 1e3 * float(np.mean(slip)), "n_stances": int(len(segs))}
+
+
+def summarize(log, sim: Simulation, state: LoopState, *, wall_time_s: float,
+              complete: bool, reason: str) -> dict:
+    """The run summary (``summary.json``).
+
+    Walking metrics are averaged over the window of :func:`averaging_window`:
+    ``mean_speed_mps`` = CoM forward displacement / window duration; ``cot`` =
+    :func:`granular_mpc.analysis.cot_from_log` (paper definition, |net power|) and
+    ``cot_decoupled`` = :func:`granular_mpc.analysis.cot_decoupled.cot_decoupled`
+    (``actuation="exact"``) over the same window (None when the CoM did not move
+    forward); ``sinkage_peak_mm_mean`` and ``slip_mm_mean`` from :func:`stance_metrics`
+    over the stances in the window. Whole run: ``lateral_drift_m`` (final − initial CoM
+    y), ``max_roll_deg``, ``max_pitch_deg`` (max |angle|), solver times from the
+    controller's tick records, ``qp_failures``. A metric that fails is left ``None`` and
+    its error is recorded under ``notes``.
+
+    Args:
+        log: the run log (DataFrame, :func:`granular_mpc.runlog.read_log`) or ``None``.
+        sim: the simulation that was run.
+        state: its final state.
+        wall_time_s: wall-clock duration of the run [s].
+        complete: the run ended normally (duration or fall).
+        reason: why it ended.
+
+    Returns:
+        A JSON-safe dict (NaN/inf → ``None``) holding at least :data:`SUMMARY_KEYS`.
+    """
+    # viz.plots pulls in matplotlib: imported only when a summary is computed
+    from ..viz.plots import trunk_rpy
+
+    sc = sim.scenario
+    biped = sim.biped
+    pd, cd = state.plant, state.controller
+    notes: dict[str, str] = {}
+
+    def safe(name: str, fn: Callable[[], Any], default: Any = None) -> Any:
+        try:
+            return fn()
+        except Exception as exc:  # a metric must never cost the summary
+            notes[name] = f"{type(exc).__name__}: {exc}"
+            return default
+
+    out: dict[str, Any] = {
+        "scenario": sc.name,
+        "mode": sc.mode,
+        "terrain": sc.terrain.name,
+        "terrain_kind": sc.terrain.kind,
+        "controller_terrain_model": sim.controller_terrain_name if cd is not None else "none",
+        "controller_terrain_kind": sim.controller_terrain.kind if cd is not None else None,
+        "commanded_speed_mps": float(sc.command.speed) if sc.mode == "walk" else 0.0,
+        "mean_speed_mps": None,
+        "sim_time_s": float(pd.t),
+        "duration_s": float(sc.sim.duration),
+        "wall_time_s": float(wall_time_s),
+        "realtime_factor": float(pd.t / wall_time_s) if wall_time_s > 0 else None,
+        "fell": state.fall is not None,
+        "fall_time_s": state.fall.time if state.fall else None,
+        "fall_reason": state.fall.reason if state.fall else None,
+        "cot": None, "cot_decoupled": None, "energy_J": None, "distance_m": None,
+        "sinkage_peak_mm_mean": None, "slip_mm_mean": None, "n_stances": 0,
+        "mpc_solve_ms": solve_time_stats([]), "wbc_solve_ms": solve_time_stats([]),
+        "qp_failures": 0,
+        "lateral_drift_m": None, "max_roll_deg": None, "max_pitch_deg": None,
+        "h_com_m": float(biped.com(sim.q0)[2] - biped.lowest_sole_point(sim.q0).min()),
+        "seed": int(sc.sim.seed),
+        "complete": bool(complete),
+        "reason": reason,
+    }
+    if cd is not None:
+        recs = cd.records
+        out["mpc_solve_ms"] = solve_time_stats([r.solve_ms for r in recs if r.kind == "mpc"])
+        out["wbc_solve_ms"] = solve_time_stats([r.solve_ms for r in recs if r.kind == "wbc"])
+        out["qp_failures"] = int(cd.qp_failures)
+    out["pushes"] = [{"start_s": w.start, "end_s": w.end, "force_N": w.wrench[:3].tolist(),
+                      "torque_Nm": w.wrench[3:].tolist(), "impulse_Ns": w.impulse.tolist()}
+                     for w in state.pushes_applied]
+    if log is None or len(log) < 2:
+        out["log_rows"] = 0 if log is None else int(len(log))
+        notes["log"] = "fewer than 2 log rows: no metrics"
+        out["notes"] = notes
+        return json_safe(out)
+    out["log_rows"] = int(len(log))
+    out["log_rate_hz"] = float(sc.log_rate_hz)
+    t = log[TIME].to_numpy(dtype=float)
+    rpy = safe("attitude", lambda: np.degrees(trunk_rpy(log)))
+    if rpy is not None:
+        out["max_roll_deg"] = float(np.max(np.abs(rpy[:, 0])))
+        out["max_pitch_deg"] = float(np.max(np.abs(rpy[:, 1])))
+    out["lateral_drift_m"] = float(log[_COM_Y].iloc[-1] - log[_COM_Y].iloc[0])
+    if sc.mode == "drop":
+        depth = np.stack([log[foot_column(s, "depth")].to_numpy(dtype=float) for s in FOOT_SIDES])
+        out["sinkage_peak_mm_mean"] = 1e3 * float(depth.max(axis=1).mean())
+        out["sinkage_final_mm"] = 1e3 * float(depth[:, -1].mean())
+        out["peak_grf_z_N"] = float((log[foot_column("left", "grf_z")]
+                                     + log[foot_column("right", "grf_z")]).max())
+        out["window_s"] = [float(t[0]), float(t[-1])]
+        out["window_note"] = "whole run (drop test)"
+        out["notes"] = notes
+        return json_safe(out)
+    ramp = cd.ramp.ramp_duration if cd is not None else 0.0
+    a, b, note = averaging_window(sim, float(t[0]), float(t[-1]), ramp)
+    out["window_s"] = [a, b]
+    out["window_note"] = note
+    sel = (t >= a - 1e-9) & (t <= b + 1e-9)
+    part = log.loc[sel]
+    if len(part) >= 2:
+        tt = part[TIME].to_numpy(dtype=float)
+        out["mean_speed_mps"] = float((part[_COM_X].iloc[-1] - part[_COM_X].iloc[0])
+                                      / (tt[-1] - tt[0]))
+        res = safe("cot", lambda: cot_from_log(log, biped=biped, t_start=a, t_end=b))
+        if res is not None:
+            out.update(cot=res.cot, energy_J=res.energy_J, distance_m=res.distance_m)
+
+            def dec():
+                js = list(biped.joint_names)
+                prt = np.radians(trunk_rpy(part))
+                return cot_decoupled(
+                    tt, part[joint_columns(js, "q")].to_numpy(float),
+                    part[joint_columns(js, "dq")].to_numpy(float),
+                    part[joint_columns(js, "tau")].to_numpy(float),
+                    prt[:, 1], prt[:, 0], part[STANCE].astype(str).to_numpy(),
+                    biped.weight, res.distance_m, biped=biped)
+            out["cot_decoupled"] = safe("cot_decoupled", dec)
+    out.update(safe("stances", lambda: stance_metrics(log, a), {}))
+    out["notes"] = notes
+    return json_safe(out)
+
+
+__all__ = ["SUMMARY_KEYS", "summarize", "averaging_window", "stance_metrics",
+           "solve_time_stats"]

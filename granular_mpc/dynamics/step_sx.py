@@ -1,0 +1,285 @@
+"""The plant step of :class:`~granular_mpc.dynamics.plant.Plant` as CasADi SX functions.
+
+Builds, for one plant model (robot + terrain + step settings + joint effects), the
+symbolic functions that :mod:`granular_mpc.dynamics.compiled` compiles to C:
+
+* ``step(x, u, θ, w) -> (x⁺, aux)``: one step ``dt`` of the reference plant — the joint PD
+  law, the Verlet velocity correction ``Δa = M⁻¹Δτ``, the drift, forward kinematics of
+  both feet, the terrain law of every patch (the terrain model's own compiled contact
+  expression, effects included), joint end stops, joint damping, the joint-effect hook,
+  the trunk wrench and the articulated-body algorithm (:mod:`.rigid_body_sx`), then the
+  kick; the semi-implicit Euler integrator likewise;
+* ``start(x, u, θ, w) -> x``: what the reference does at its very first Verlet step
+  (evaluate and commit the acceleration and the contact once before stepping).
+
+Vector layouts (all SI, frames as in :class:`~granular_mpc.dynamics.plant.Plant`) are
+described by :class:`StepLayout`. The control input ``u = [τ_ff, q_ref, k_p, k_d]`` (each
+actuator order) gives the held torque ``τ = τ_ff + k_p (q_ref − q_a) − k_d q̇_a`` evaluated at
+the state at the start of the step — a plain torque command is ``k_p = k_d = 0``.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import warnings
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from ..config import EffectSpec
+from ..exceptions import ConfigError
+from ..robot.model import SIDES
+from ..terrain import build_terrain
+from ..terrain.contact import DIAG_NAMES, N_KIN
+from . import rigid_body_sx as rb
+
+#: length of the auxiliary output per step: per foot force (3, W) [N], mean contact
+#: point (3, W) [m], in-contact flag; then max |v| after the step
+AUX_NAMES = tuple(f"{side}_{name}" for side in SIDES
+                  for name in ("fx", "fy", "fz", "px", "py", "pz", "contact")) + ("speed_max",)
+
+_JIT_LOCK = threading.Lock()
+
+
+@dataclass(frozen=True)
+class StepLayout:
+    """Sizes and slices of the flat state ``x`` and control ``u`` of one robot.
+
+    ``x = [q (nq) | v (nv) | a (nv) | τ_prev (na) | patch states (2 feet × n × S)]``:
+    configuration [m, quaternion x y z w, rad], velocity (base twist in the trunk frame)
+    [m/s, rad/s], last acceleration, the torque held during the last step [N·m], and the
+    terrain's per-patch state (:mod:`granular_mpc.terrain.contact`, left foot first).
+    ``u = [τ_ff | q_ref | k_p | k_d]`` (na each) [N·m, rad, N·m/rad, N·m·s/rad].
+    """
+
+    nq: int
+    nv: int
+    na: int
+    n_patches: int
+    patch_state: int
+    n_theta: int
+
+    @property
+    def nx(self) -> int:
+        return self.nq + 2 * self.nv + self.na + 2 * self.n_patches * self.patch_state
+
+    @property
+    def nu(self) -> int:
+        return 4 * self.na
+
+    @property
+    def q(self) -> slice:
+        return slice(0, self.nq)
+
+    @property
+    def v(self) -> slice:
+        return slice(self.nq, self.nq + self.nv)
+
+    @property
+    def a(self) -> slice:
+        return slice(self.nq + self.nv, self.nq + 2 * self.nv)
+
+    @property
+    def tau_prev(self) -> slice:
+        return slice(self.nq + 2 * self.nv, self.nq + 2 * self.nv + self.na)
+
+    @property
+    def contact(self) -> slice:
+        return slice(self.nq + 2 * self.nv + self.na, self.nx)
+
+
+def symbolic_contact(terrain, robot_config) -> ca.Function:
+    """The terrain model's per-foot contact law as a CasADi SX function.
+
+    The terrain keeps only its compiled form (``terrain.contact.function``); when that is
+    an external C function the same terrain is rebuilt with the compiler switched off
+    (``GRANULAR_MPC_JIT=0``), which yields the identical SX function.
+    """
+    fn = terrain.contact.function
+    if fn.is_a("SXFunction"):
+        return fn
+    specs = [EffectSpec(name=eff.name, params=dict(vals)) for eff, vals in terrain.effects]
+    config = terrain.config.model_copy(update={"effects": []})
+    with _JIT_LOCK:
+        old = os.environ.get("GRANULAR_MPC_JIT")
+        os.environ["GRANULAR_MPC_JIT"] = "0"
+        try:
+            rebuilt = build_terrain(config, robot_config, extra_effects=specs)
+        finally:
+            if old is None:
+                del os.environ["GRANULAR_MPC_JIT"]
+            else:
+                os.environ["GRANULAR_MPC_JIT"] = old
+    if rebuilt.param_names != terrain.param_names:  # pragma: no cover - defensive
+        raise ConfigError("could not rebuild the terrain's contact law symbolically",
+                          key="terrain")
+    return rebuilt.contact.function
+
+
+def _trace_joint_effect(fn, na: int) -> ca.Function:
+    """Trace a joint-effect hook ``(q_a, dq_a) -> τ_a`` with SX and check it numerically."""
+    qa, va = ca.SX.sym("q_a", na), ca.SX.sym("dq_a", na)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FutureWarning)
+            out = ca.SX(fn(qa, va))
+        traced = ca.Function("joint_effect", [qa, va], [ca.reshape(out, na, 1)])
+        rng = np.random.default_rng(0)
+        qn, vn = rng.normal(size=na), rng.normal(size=na)
+        ok = np.allclose(np.array(traced(qn, vn)).ravel(), np.asarray(fn(qn, vn), float),
+                         rtol=1e-12, atol=1e-12)
+    except Exception as exc:  # noqa: BLE001 - any failure means "not traceable"
+        raise ConfigError(f"joint effect {fn!r} cannot be compiled ({exc}); use the "
+                          "reference Plant", key="joint_effects") from exc
+    if not ok:
+        raise ConfigError(f"joint effect {fn!r} traced with CasADi gives other values than "
+                          "on floats; use the reference Plant", key="joint_effects")
+    return traced
+
+
+class StepBuilder:
+    """Builds the symbolic ``step`` and ``start`` functions of one plant model.
+
+    Args:
+        plant: a :class:`~granular_mpc.dynamics.plant.Plant` (its biped, terrain, sim
+            settings and joint effects are read; it is not modified).
+    """
+
+    def __init__(self, plant) -> None:
+        biped, terrain = plant.biped, plant.terrain
+        model = biped.model
+        self.plant = plant
+        self.tree = rb.tree_from_model(model)
+        self.contact_fn = symbolic_contact(terrain, biped.config)
+        cm = terrain.contact
+        self.layout = StepLayout(model.nq, model.nv, len(biped.idx_v), cm.n_slices,
+                                 cm.state_size, len(terrain.param_names))
+        self.gravity = np.array(model.gravity.linear)
+        self.iq, self.iv = list(map(int, biped.idx_q)), list(map(int, biped.idx_v))
+        self.q_lo, self.q_hi = biped.position_limits
+        self.feet = []
+        for side in SIDES:
+            fid, jid = biped.foot_frame[side], biped.foot_joint[side]
+            M = model.frames[fid].placement
+            self.feet.append((jid, np.array(M.rotation), np.array(M.translation),
+                              np.array(M.toDualActionMatrix())))
+        self.i_surface = list(terrain.param_names).index("surface_height")
+        self.clear_offset = biped.config.foot.radius + 0.005
+        self.joint_effects = [_trace_joint_effect(fn, self.layout.na)
+                              for fn in plant.joint_effects]
+        self.dt = float(plant.sim.dt)
+        self.integrator = plant.sim.integrator
+
+    # ------------------------------------------------------------------ pieces
+    def _torque(self, q, v, u):
+        """Full-size generalised torque held during the step (PD law at the step start)."""
+        na, L = self.layout.na, self.layout
+        tau_ff, q_ref, kp, kd = (u[k * na:(k + 1) * na] for k in range(4))
+        qa = ca.vertcat(*[q[i] for i in self.iq])
+        va = ca.vertcat(*[v[i] for i in self.iv])
+        tau_a = tau_ff + kp * (q_ref - qa) - kd * va
+        full = [0.0] * L.nv
+        for k, i in enumerate(self.iv):
+            full[i] = tau_a[k]
+        return tau_a, ca.vertcat(*full)
+
+    def forward(self, q, v, v_dyn, tau_full, states, theta, wrench):
+        """Acceleration and the evaluated (uncommitted) patch states at (q, v).
+
+        Mirrors :meth:`Plant.forward`. Returns ``(a, new_states, aux_feet)`` with
+        ``aux_feet`` the per-foot (force W, mean point W, contact flag) list.
+        """
+        L = self.layout
+        n, S = L.n_patches, L.patch_state
+        pl = rb.placements(self.tree, q)
+        vel = rb.velocities(self.tree, pl, v)
+        fext = [None] * len(self.tree)
+        new_states, aux = [], []
+        clear = theta[self.i_surface] + self.clear_offset
+        per_patch = 3 + 3 + S + len(DIAG_NAMES)
+        for foot, (jid, R_f, p_f, dual) in enumerate(self.feet):
+            st = states[foot * n * S:(foot + 1) * n * S]
+            p, R, vW, wW = rb.frame_kinematics(pl, vel, jid, R_f, p_f)
+            kin = ca.vertcat(p, ca.vec(R), vW, wW)
+            assert kin.shape[0] == N_KIN
+            out = self.contact_fn(ca.vertcat(kin, st, self.dt, theta))
+            in_contact = ca.mmax(ca.vertcat(*[st[k * S + 6] for k in range(n)])) > 0.5
+            # a swing foot whose sole cannot reach the surface: zero force, state reset
+            live = ca.if_else(ca.logic_and(p[2] > clear, ca.logic_not(in_contact)), 0.0, 1.0)
+            wrench_local = live * out[n * per_patch: n * per_patch + 6]
+            fext[jid - 1] = ca.SX(ca.DM(dual)) @ wrench_local
+            f_sum, p_sum, flag = ca.SX.zeros(3, 1), ca.SX.zeros(3, 1), 0.0
+            for k in range(n):
+                b = k * per_patch
+                f_sum = f_sum + live * out[b:b + 3]
+                p_sum = p_sum + out[b + 3:b + 6] / n
+                new_states.append(live * out[b + 6:b + 6 + S])
+                flag = ca.fmax(flag, live * out[b + 6 + 6])
+            aux += [f_sum, p_sum, flag]
+        # joint end stops, joint damping and the joint-effect hook (actuated joints)
+        qa = ca.vertcat(*[q[i] for i in self.iq])
+        va = ca.vertcat(*[v[i] for i in self.iv])
+        over = ca.fmax(qa - ca.DM(self.q_hi), 0.0) + ca.fmin(qa - ca.DM(self.q_lo), 0.0)
+        terms = [ca.if_else(over != 0.0, -self.plant.STOP_K * over - self.plant.STOP_D * va, 0.0)]
+        damping = self.plant.biped.config.joint_damping
+        if damping > 0.0:
+            terms.append(-damping * va)
+        terms += [fn(qa, va) for fn in self.joint_effects]
+        tau = [tau_full[i] for i in range(L.nv)]
+        for term in terms:                     # in the reference's order of summation
+            for k, i in enumerate(self.iv):
+                tau[i] = tau[i] + term[k]
+        # the trunk wrench, given in W at the trunk origin → trunk frame
+        R_B = pl.R_o[0]
+        fext[0] = ca.vertcat(R_B.T @ wrench[0:3], R_B.T @ wrench[3:6])
+        a = rb.aba(self.tree, pl, L.nv, ca.vertcat(*tau), v=v_dyn, fext=fext,
+                   gravity=self.gravity)
+        return a, ca.vertcat(*new_states), aux
+
+    # ------------------------------------------------------------------ functions
+    def _symbols(self):
+        L = self.layout
+        return (ca.SX.sym("x", L.nx), ca.SX.sym("u", L.nu), ca.SX.sym("theta", L.n_theta),
+                ca.SX.sym("wrench", 6))
+
+    def step_function(self) -> ca.Function:
+        """``step(x, u, θ, w) -> (x⁺, aux)``: one plant step (see the module docstring)."""
+        L, dt = self.layout, self.dt
+        x, u, theta, wrench = self._symbols()
+        q, v, a, tau_prev, states = (x[L.q], x[L.v], x[L.a], x[L.tau_prev], x[L.contact])
+        tau_a, tau_full = self._torque(q, v, u)
+        if self.integrator == "verlet":
+            dtau = [0.0] * L.nv
+            for k, i in enumerate(self.iv):
+                dtau[i] = tau_a[k] - tau_prev[k]
+            # acceleration is affine in τ: correct the reused one exactly (Δa = M⁻¹ Δτ)
+            a = a + rb.aba(self.tree, rb.placements(self.tree, q), L.nv, ca.vertcat(*dtau))
+            v_half = v + 0.5 * dt * a
+            q_new = rb.integrate(self.tree, q, v_half * dt)
+            a_new, new_states, aux = self.forward(q_new, v_half, v_half + 0.5 * dt * a,
+                                                  tau_full, states, theta, wrench)
+            v_new = v_half + 0.5 * dt * a_new
+        else:
+            a_new, new_states, aux = self.forward(q, v, v, tau_full, states, theta, wrench)
+            v_new = v + dt * a_new
+            q_new = rb.integrate(self.tree, q, v_new * dt)
+        x_next = ca.vertcat(q_new, v_new, a_new, tau_a, new_states)
+        aux_out = ca.vertcat(*aux, ca.mmax(ca.fabs(v_new)))
+        return ca.Function("plant_step", [x, u, theta, wrench], [x_next, aux_out],
+                           ["x", "u", "theta", "wrench"], ["x_next", "aux"])
+
+    def start_function(self) -> ca.Function:
+        """``start(x, u, θ, w) -> x``: first evaluation of a Verlet run (a and contact committed)."""
+        L = self.layout
+        x, u, theta, wrench = self._symbols()
+        q, v, states = x[L.q], x[L.v], x[L.contact]
+        tau_a, tau_full = self._torque(q, v, u)
+        a, new_states, _ = self.forward(q, v, v, tau_full, states, theta, wrench)
+        x_next = ca.vertcat(q, v, a, tau_a, new_states)
+        return ca.Function("plant_start", [x, u, theta, wrench], [x_next],
+                           ["x", "u", "theta", "wrench"], ["x_next"])
+
+
+__all__ = ["AUX_NAMES", "StepLayout", "StepBuilder", "symbolic_contact"]

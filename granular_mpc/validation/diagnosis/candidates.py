@@ -1,0 +1,120 @@
+"""Candidate effects and their regression columns (``docs/validation.md`` §3.2).
+
+A candidate is a registered effect (any kind: terrain force, joint, sensor, geometry) with
+parameters that switch it off (``EffectInfo.neutral``); each such *magnitude* parameter
+is one regression :class:`Column`. The calibration's own parameters are columns too
+(``candidate="calibration"``, nuisance, see :mod:`.calibration`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+from ...effects import EffectInfo, all_effects, effect_info
+from ..replay.model import Variant, effect_variant
+
+#: the candidate name of the calibration's (nuisance) columns
+CALIBRATION = "calibration"
+
+
+@dataclass(frozen=True)
+class Column:
+    """One regression column: a magnitude parameter of a candidate (or a nuisance θ).
+
+    Attributes:
+        candidate: effect name, or ``"calibration"``.
+        param: parameter (θ name for nuisance).
+        neutral: value that switches it off (nuisance: the calibrated value).
+        step: finite-difference step of the sensitivity.
+        lower, upper: bounds of the parameter value.
+        unit: the parameter's unit.
+    """
+
+    candidate: str
+    param: str
+    neutral: float
+    step: float
+    lower: float
+    upper: float
+    unit: str = ""
+
+    @property
+    def key(self) -> str:
+        """``<candidate>.<param>``: the column's name in designs and regressions."""
+        return f"{self.candidate}.{self.param}"
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        """Bounds of the column's coefficient (the change from ``neutral``)."""
+        return (self.lower - self.neutral, self.upper - self.neutral)
+
+
+def candidate_columns(info: EffectInfo) -> list[Column]:
+    """Columns of one candidate: its parameters that switch it off (``neutral``)."""
+    cols = []
+    for p, neutral in info.neutral.items():
+        spec = info.params[p]
+        step = spec.default - neutral
+        if abs(step) < 1e-12:
+            step = 0.1 * (spec.upper - spec.lower)
+            if neutral + step > spec.upper:
+                step = -step
+        cols.append(Column(info.name, p, float(neutral), float(step), spec.lower, spec.upper,
+                           spec.unit))
+    return cols
+
+
+def variant_for(info: EffectInfo, values: Mapping[str, float], base: Variant) -> Variant:
+    """``base`` with the effect ``info`` on at its neutral parameters updated by ``values``."""
+    p = info.neutral_params()
+    p.update(values)
+    return effect_variant([(info, p)], base)
+
+
+@dataclass(frozen=True)
+class CandidateSet:
+    """The candidates of a diagnosis and their columns.
+
+    Attributes:
+        infos: effect name → its registry entry (only effects that can be switched off).
+        columns: effect name → its magnitude columns.
+    """
+
+    infos: Mapping[str, EffectInfo]
+    columns: Mapping[str, tuple[Column, ...]]
+
+    @property
+    def keys(self) -> dict[str, list[str]]:
+        """Effect name → its column keys."""
+        return {n: [c.key for c in cols] for n, cols in self.columns.items()}
+
+    @property
+    def terrain_force_names(self) -> list[str]:
+        """The terrain-force candidates (compiled into the replayed terrain)."""
+        return [n for n, i in self.infos.items() if i.kind == "terrain_force"]
+
+    def kind(self, name: str) -> str:
+        """The effect's kind."""
+        return self.infos[name].kind
+
+    def params_at(self, name: str, values: Mapping[str, float]) -> dict[str, float]:
+        """The effect's neutral parameters with its columns set from ``values``
+        (column key → value)."""
+        p = self.infos[name].neutral_params()
+        for c in self.columns[name]:
+            p[c.param] = values[c.key]
+        return p
+
+
+def build_candidates(names: Sequence[str] | None = None) -> CandidateSet:
+    """The candidates ``names`` (default: every registered effect of any kind), those
+    that can be switched off, with their columns."""
+    names = sorted(all_effects()) if names is None else list(dict.fromkeys(names))
+    infos = {n: effect_info(n) for n in names}
+    infos = {n: i for n, i in infos.items() if i.neutral}      # needs a way to switch off
+    return CandidateSet(infos, {n: tuple(candidate_columns(i)) for n, i in infos.items()})
+
+
+__all__ = ["CALIBRATION", "Column", "candidate_columns", "variant_for", "CandidateSet",
+           "build_candidates"]

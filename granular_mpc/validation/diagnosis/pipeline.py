@@ -1,0 +1,136 @@
+"""``diagnose``: calibrate, then find, rank and localise the effect the model is missing.
+
+The stages, each a function returning a frozen result (``docs/validation.md`` §3):
+:func:`.calibration.calibrate_model` → :func:`.residuals.compute_residuals` →
+:func:`.screen.screen` → :func:`.refine.refine` → :func:`.localise.localise_models` →
+:func:`.verdict.decide` → :mod:`.report`.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Sequence
+
+from ...config import SimConfig
+from ...effects import load_effect_file
+from ...output import make_output_folder
+from ..dataformat import load_dataset
+from ..replay.pool import ReplayPool
+from .calibration import calibrate_model
+from .candidates import build_candidates
+from .localise import localise_models, where_summary
+from .problem import load_problem
+from .refine import refine
+from .report import figures as make_figures
+from .report import write_outputs
+from .residuals import compute_residuals, replay_rmse
+from .result import (CalibrationReport, Diagnosis, DesignSummary, LocalizationReport,
+                     NEffFactor, Recommended)
+from .screen import screen, screening_design
+from .verdict import VerdictInputs, decide
+
+
+def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
+             candidates: Sequence[str] | None = None, seed: int = 0,
+             terrain: Any = "dry_sand", sim: SimConfig | None = None,
+             workers: int | None = None, n_boot: int = 200, phase_bins: int = 10,
+             max_effects: int = 2, refine_iterations: int = 2,
+             calibrate_params: Sequence[str] = ("zeta",), max_contenders: int = 2,
+             effect_files: Sequence[str | Path] = (), figures: bool = True) -> Diagnosis:
+    """Calibrate the model on a data set, then find, rank and localise missing effects.
+
+    Args:
+        data_dir: measurement data set (format v1).
+        out_dir: folder for ``diagnosis.json``, ``report.md`` and figures (None: none).
+        candidates: effect names to test (default: every registered effect of any kind,
+            built-in and user-registered).
+        seed: seed of the bootstrap and of the mutual-information estimates.
+        terrain: the model's terrain (name/path or config) before calibration.
+        sim: plant settings of the replays.
+        workers: processes for the replays (default: all CPUs).
+        n_boot: bootstrap resamples (inclusion probability, intervals).
+        phase_bins: stance-phase bins of the residual rows.
+        max_effects: at most this many effects are added.
+        refine_iterations: Gauss–Newton replay iterations for the added effects.
+        max_contenders: significant candidates refined by replays before one is added
+            (the linear screening can misorder strong, nonlinear effects).
+        calibrate_params: terrain parameters calibrated and kept free (nuisance) in the
+            regression: ``("zeta",)`` (default) or ``("zeta", "phi_s")``. φ_s is always
+            estimated for the report (``calibration.free_phi_s``), but left free it trades
+            off against depth-dependent effects (it shapes the capacity–depth curve), so
+            by default the model keeps the terrain file's value.
+        effect_files: user Python files registering effects (imported first; their
+            effects become candidates).
+        figures: write figures and the one-page report.
+
+    Returns:
+        :class:`~.result.Diagnosis`.
+    """
+    t_start = _time.perf_counter()
+    timing: dict[str, float] = {}
+    for f in effect_files:
+        load_effect_file(str(f))
+    ds = load_dataset(data_dir)
+    # checked before the replays, so that a bad folder does not cost the computation
+    out = make_output_folder(out_dir) if out_dir is not None else None
+    cands = build_candidates(candidates)
+    problem = load_problem(data_dir, terrain=terrain, sim=sim, phase_bins=phase_bins, dataset=ds)
+    timing["prepare"] = _time.perf_counter() - t_start
+
+    t0 = _time.perf_counter()
+    cal = calibrate_model(problem, cands, params=calibrate_params, seed=seed)
+    timing["calibrate"] = _time.perf_counter() - t0
+    with ReplayPool(cal.replay_model, problem.windows, workers=workers) as pool:
+        t0 = _time.perf_counter()
+        res = compute_residuals(problem, cands, cal, pool)
+        timing["replays"] = _time.perf_counter() - t0
+        t0 = _time.perf_counter()
+        sd = screening_design(problem, cands, cal.nuisance, res, seed=seed)
+        timing["design"] = _time.perf_counter() - t0
+        t0 = _time.perf_counter()
+        scr = screen(problem, cands, sd, n_boot=n_boot, seed=seed, max_effects=max_effects)
+        timing["rank"] = _time.perf_counter() - t0
+        t0 = _time.perf_counter()
+        ref = refine(problem, cands, cal, res, scr, pool, n_boot=n_boot, seed=seed,
+                     max_effects=max_effects, max_contenders=max_contenders,
+                     refine_iterations=refine_iterations)
+        timing["refine"] = _time.perf_counter() - t0
+    t0 = _time.perf_counter()
+    n_fitted = len(cal.nuisance) + sum(len(cands.columns[s]) for s in ref.selected)
+    loc = localise_models(problem, res, scr.regression, cal.nuisance,
+                          ref.final_preds if ref.selected else None, n_fitted, seed=seed)
+    timing["localize"] = _time.perf_counter() - t0
+    theta = dict(ref.theta) if ref.selected else dict(loc.theta_linear)
+    verdict = decide(VerdictInputs(ref.selected, ref.ranking, ref.refined_heldout, loc.after))
+    reg = scr.regression
+    design = DesignSummary(
+        len(problem.windows), problem.n_trials, problem.channels, phase_bins, int(reg.y.size),
+        int(reg.stance.y.size),
+        NEffFactor(scr.regressions.systematic.n_eff_factor, scr.regressions.stance.n_eff_factor),
+        dict(scr.regressions.systematic.sigma), scr.builder.group_unit, len(reg.splits),
+        res.diverged, res.jumps, {n: i.kind for n, i in cands.infos.items()}, pool.n_replays,
+        ref.steps)
+    timing["total"] = _time.perf_counter() - t_start
+    diag = Diagnosis(
+        str(data_dir), verdict,
+        CalibrationReport(cal.calibration, cal.free_phi_s, theta, loc.theta_linear),
+        ref.ranking, scr.indistinguishable, ref.fitted,
+        ref.refined_heldout.by_channel if ref.refined_heldout else {}, ref.refined_heldout,
+        replay_rmse(problem, res.base_preds, ref.final_preds) if ref.selected else {},
+        LocalizationReport(tuple(where_summary(loc.before, 6)), loc.before, loc.after,
+                           tuple(where_summary(loc.after, 6)), loc.before.n_significant_cells,
+                           loc.after.n_significant_cells, loc.before.n_major_cells,
+                           loc.after.n_major_cells),
+        design, Recommended.for_fit(theta, ref.fitted), timing, (), out)
+    if out is None:
+        return diag
+    figs = (make_figures(out, loc.before, loc.after, ref.ranking, problem.channels,
+                         problem.edges, res.R, loc.R_after, ref.selected) if figures else [])
+    diag = replace(diag, figures=tuple(p.name for p in figs))
+    write_outputs(diag, figs)
+    return diag
+
+
+__all__ = ["diagnose"]

@@ -1,0 +1,205 @@
+"""Stage 4, refine: add effects one at a time — the best significant contenders are refined
+by Gauss–Newton replays, the one with the lower AICc of its replayed residual is added, the
+others are re-tested conditionally on the refined model — then the final ranking and the
+refined model's held-out statistics (``docs/validation.md`` §3.3)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from ..replay.pool import ReplayPool
+from .calibration import CalibrationStage, nuisance_columns
+from .candidates import CandidateSet
+from .cubes import residual_cube
+from .design import GeometryRows
+from .gauss_newton import GaussNewtonFit, refine_replays
+from .problem import Problem
+from .ranking_records import CandidateStats, ConditionalResult, Ranked, RefinedFit
+from .regression import aicc
+from .residuals import Residuals
+from .result import ConditionalRow, RefinedHeldout, SelectionStep
+from .screen import Screening, candidate_stats, channel_heldout
+
+#: bounds of the scale along the secant from the calibrated to the refined model
+SECANT_BOUNDS = (0.0, 2.0)
+REFINED_HELDOUT_NOTE = (
+    "trial-grouped CV: the magnitude of the added effects (a scalar along the replayed change "
+    "from the calibrated to the refined model) and the calibration are fitted on the training "
+    "trials, the RMSE is scored on the held-out trials, stance by stance")
+
+
+@dataclass(frozen=True, eq=False)
+class Refinement:
+    """What the selection added and the final ranking.
+
+    Attributes:
+        selected: the added effects, in order.
+        fitted: their refined parameters.
+        theta: the calibration θ refined with them (the calibrated θ if nothing was added).
+        final_preds: per-window replay outputs of the final model.
+        ranking: every candidate, the added ones first.
+        steps: one record per addition.
+        refined_heldout: held-out statistics of the refined model (None: nothing added).
+    """
+
+    selected: tuple[str, ...]
+    fitted: Mapping[str, Mapping[str, float]]
+    theta: Mapping[str, float]
+    final_preds: tuple[dict, ...]
+    ranking: tuple[Ranked, ...]
+    steps: tuple[SelectionStep, ...]
+    refined_heldout: RefinedHeldout | None
+
+
+def _values(fitted: Mapping[str, Mapping[str, float]], candidates: CandidateSet,
+            selected) -> dict[str, float]:
+    """Column key → fitted value of the selected effects' columns."""
+    return {c.key: fitted[s][c.param] for s in selected for c in candidates.columns[s]}
+
+
+def _neutral(candidates: CandidateSet, selected) -> dict[str, float]:
+    return {c.key: c.neutral for s in selected for c in candidates.columns[s]}
+
+
+def _conditional_row(r: CandidateStats) -> ConditionalRow:
+    return ConditionalRow(r.effect, r.heldout_error_reduction, r.heldout_error_reduction_stance,
+                          r.delta_aicc, r.inclusion_probability, r.effect_size, r.significant)
+
+
+def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, res: Residuals,
+           scr: Screening, pool: ReplayPool, *, n_boot: int, seed: int, max_effects: int,
+           max_contenders: int, refine_iterations: int) -> Refinement:
+    """Add at most ``max_effects`` effects (each refined by ``refine_iterations`` replay
+    Gauss–Newton iterations; ``max_contenders`` significant candidates are refined before
+    one is added)."""
+    windows, channels, edges = problem.windows, problem.channels, problem.edges
+    geo = res.geometry
+    base_keys = list(scr.base_keys)
+    cand_keys = candidates.keys
+    n_nuis = len(base_keys)
+    selected: list[str] = []
+    fitted: Mapping[str, Mapping[str, float]] = {}
+    theta_final = dict(cal.theta)
+    final_preds = res.base_preds
+    stats = list(scr.ranking)
+    steps: list[SelectionStep] = []
+    refined_fits: dict[str, list[RefinedFit]] = {r.effect: [] for r in scr.ranking}
+    conditional: dict[str, list[ConditionalResult]] = {r.effect: [] for r in scr.ranking}
+
+    def refined_score(fit: GaussNewtonFit, sel: list[str]) -> tuple[float, float]:
+        """AICc of the stance-averaged weighted residual of a refined (replayed) model."""
+        R_ = residual_cube(windows, fit.preds, channels, edges)
+        gy = geo.shifted(_values(fit.fitted, candidates, sel), _neutral(candidates, sel)).y
+        d_ = scr.builder.build(R_, {}, GeometryRows(gy, geo.sigma, {}), {}, []).systematic
+        y_ = d_.y[np.isfinite(d_.y)]
+        k_ = n_nuis + sum(len(candidates.columns[s]) for s in sel)
+        return aicc(float(y_ @ y_), y_.size * d_.n_eff_factor, k_), float(y_ @ y_)
+
+    while len(selected) < max_effects:
+        contenders = [r for r in stats if r.significant and r.effect not in selected]
+        contenders = contenders[:max_contenders]
+        if not contenders:
+            break
+        prev_vals = _values(fitted, candidates, selected)
+        tried = []
+        for r in contenders:
+            start = dict(prev_vals)
+            for p, est in r.params.items():
+                start[f"{r.effect}.{p}"] = float(est.value)
+            sel = selected + [r.effect]
+            its = 1 if len(contenders) > 1 else refine_iterations
+            fit = refine_replays(problem, pool, res, candidates, sel, start,
+                                 nuisance_columns(theta_final), iterations=its)
+            score, rss = refined_score(fit, sel)
+            tried.append((score, r, fit, its))
+            refined_fits[r.effect].append(RefinedFit(tuple(selected), score, rss,
+                                                     dict(fit.fitted[r.effect])))
+        tried.sort(key=lambda t: t[0])
+        _, best, fit, its = tried[0]
+        selected.append(best.effect)
+        if its < refine_iterations:          # finish the winner's refinement
+            fit = refine_replays(problem, pool, res, candidates, selected,
+                                 _values(fit.fitted, candidates, selected),
+                                 nuisance_columns(fit.theta),
+                                 iterations=refine_iterations - its)
+        fitted, theta_final, final_preds = fit.fitted, dict(fit.theta), fit.preds
+        step = dict(added=best.effect, contenders=tuple(t[1].effect for t in tried),
+                    contender_aicc=tuple(t[0] for t in tried), refine=fit.log)
+        if len(selected) >= max_effects:
+            steps.append(SelectionStep(**step))
+            break
+        # conditional test of the others against the refined model (linearised around it)
+        R_cur = residual_cube(windows, final_preds, channels, edges)
+        sens_c = dict(res.sens)
+        sens_c.update(fit.sens_selected)
+        geo_c = geo.shifted(_values(fitted, candidates, selected), _neutral(candidates, selected))
+        b_c = dict(scr.bounds)
+        for s in selected:
+            for c in candidates.columns[s]:
+                cur = fitted[s][c.param]
+                b_c[c.key] = (c.lower - cur, c.upper - cur)
+        for c in nuisance_columns(theta_final):
+            b_c[c.key] = c.bounds
+        keys_fixed = base_keys + [k for s in selected for k in cand_keys[s]]
+        reg_c = scr.builder.build(R_cur, sens_c, geo_c, b_c, keys_fixed).regression
+        rest = {n: k for n, k in cand_keys.items() if n not in selected}
+        stats = candidate_stats(reg_c, keys_fixed, rest, candidates.columns, candidates.infos,
+                                n_boot=n_boot, seed=seed, max_effects=max_effects - len(selected))
+        steps.append(SelectionStep(**step, conditional=tuple(_conditional_row(r) for r in stats)))
+        for r in stats:
+            conditional[r.effect].append(ConditionalResult(tuple(selected),
+                                                           r.heldout_error_reduction,
+                                                           r.significant))
+    return Refinement(tuple(selected), fitted, theta_final, tuple(final_preds),
+                      _final_ranking(scr.ranking, selected, fitted, refined_fits, conditional),
+                      tuple(steps),
+                      _refined_heldout(problem, candidates, res, scr, selected, fitted,
+                                       final_preds) if selected else None)
+
+
+def _final_ranking(ranking, selected, fitted, refined_fits, conditional) -> tuple[Ranked, ...]:
+    """The added effects (in the order the refined fits chose them), then the others by
+    their screening held-out error reduction."""
+    order = {n: i for i, n in enumerate(selected)}
+    entries = sorted(ranking, key=lambda e: (order.get(e.effect, len(order)), e.rank))
+    out = []
+    for i, e in enumerate(entries):
+        base = {f: getattr(e, f) for f in CandidateStats.__dataclass_fields__}
+        base["rank"] = i + 1
+        out.append(Ranked(**base, refined_fits=tuple(refined_fits[e.effect]),
+                          conditional=tuple(conditional[e.effect]), added=e.effect in selected,
+                          linear_rank=e.rank,
+                          refined_params=dict(fitted[e.effect]) if e.effect in fitted else None))
+    return tuple(out)
+
+
+def _refined_heldout(problem, candidates, res, scr, selected, fitted,
+                     final_preds) -> RefinedHeldout:
+    """Held-out statistics of the added effects along the secant from the calibrated to
+    the refined model (both replayed): exact at both ends, linear in between."""
+    geo = res.geometry
+    base_keys = list(scr.base_keys)
+    R_fin = residual_cube(problem.windows, final_preds, problem.channels, problem.edges)
+    sens_f = dict(res.sens)
+    sens_f["secant"] = res.R - R_fin                  # prediction change base → final
+    g_sec = np.zeros(len(problem.windows))
+    for s in selected:
+        for c in candidates.columns[s]:
+            if c.key in geo.sens:
+                g_sec = g_sec + geo.sens[c.key] * (fitted[s][c.param] - c.neutral)
+    geo_f = GeometryRows(geo.y, geo.sigma, {"secant": g_sec})
+    b_f = dict(scr.bounds)
+    b_f["secant"] = SECANT_BOUNDS
+    reg_f = scr.builder.build(res.R, sens_f, geo_f, b_f, base_keys).regression
+    cv0, cv1 = reg_f.cv(base_keys), reg_f.cv(base_keys + ["secant"])
+    return RefinedHeldout(
+        1.0 - cv1.sse / cv0.sse if cv0.sse > 0 else 0.0,
+        1.0 - cv1.sse_stance / cv0.sse_stance if cv0.sse_stance > 0 else 0.0,
+        channel_heldout(reg_f, base_keys, ["secant"], problem.channels, stance=True),
+        REFINED_HELDOUT_NOTE)
+
+
+__all__ = ["Refinement", "refine", "SECANT_BOUNDS"]

@@ -1,0 +1,182 @@
+"""Stage 7, report: ``diagnosis.json``, the one-page ``report.md`` and its figures
+(``docs/validation.md`` §3.5)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Sequence
+
+import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
+
+from ..prepare import channel_unit
+from .localization_records import Localization
+from .ranking_records import Ranked
+from .result import DIAGNOSIS_FILE, REPORT_FILE, Diagnosis
+from .thresholds import MIN_HELDOUT_REDUCTION, T_CELL
+
+FIGURE_DPI = 110
+
+
+def figures(out: Path, loc_before: Localization, loc_after: Localization,
+            ranking: Sequence[Ranked], channels: Sequence[str], edges: np.ndarray,
+            R: np.ndarray, R_after: np.ndarray, selected: Sequence[str]) -> list[Path]:
+    """``residual_tstat.png`` (bias t-statistic, channel × phase, before/after),
+    ``ranking.png`` and ``residual_profiles.png`` (mean residual of the most structured
+    channels with 95 % bands) in ``out``."""
+    matplotlib.use("Agg")
+    channels = list(channels)
+    paths = []
+    # 1. t-statistics heatmap before / after
+    fig = Figure(figsize=(11, 5), constrained_layout=True)
+    axes = fig.subplots(1, 2)
+    for ax, loc, title in ((axes[0], loc_before, "calibrated model"),
+                           (axes[1], loc_after, "after added effects" if selected
+                            else "(nothing added)")):
+        T = np.zeros((len(channels), len(edges) - 1))
+        for cl in loc.cells:
+            if cl.side != "all":
+                continue
+            c = channels.index(cl.channel)
+            b = int(np.searchsorted(edges, cl.phase_lo + 1e-9) - 1)
+            T[c, b] = cl.t
+        lim = max(T_CELL * 2, float(np.nanmax(np.abs(T))) if T.size else 1.0)
+        im = ax.imshow(T, aspect="auto", cmap="RdBu_r", vmin=-lim, vmax=lim)
+        ax.set_yticks(range(len(channels)), labels=channels, fontsize=7)
+        ax.set_xticks(range(len(edges) - 1), labels=[f"{edges[i]:g}" for i in range(len(edges) - 1)],
+                      fontsize=7)
+        ax.set_xlabel("stance phase bin start [%]")
+        ax.set_title(f"residual bias t-statistic: {title}", fontsize=9)
+    fig.colorbar(im, ax=axes, label="t (|t| ≥ %g: structure)" % T_CELL)
+    p = out / "residual_tstat.png"
+    fig.savefig(p, dpi=FIGURE_DPI)
+    paths.append(p)
+    # 2. ranking
+    fig = Figure(figsize=(7, 0.35 * max(len(ranking), 3) + 1.2), constrained_layout=True)
+    ax = fig.subplots()
+    names = [r.effect for r in ranking][::-1]
+    vals = [100 * r.heldout_error_reduction for r in ranking][::-1]
+    colors = ["tab:green" if r.added else ("tab:orange" if r.significant else "tab:gray")
+              for r in ranking][::-1]
+    ax.barh(names, vals, color=colors)
+    ax.axvline(100 * MIN_HELDOUT_REDUCTION, color="k", ls="--", lw=0.8)
+    ax.set_xlabel("held-out error reduction [%] (green: added)")
+    ax.set_title("candidate effects, trial-grouped cross-validation", fontsize=9)
+    p = out / "ranking.png"
+    fig.savefig(p, dpi=FIGURE_DPI)
+    paths.append(p)
+    # 3. mean residual profiles of the most structured channels, before / after
+    top: list[str] = []
+    for cl in loc_before.significant_cells:
+        if cl.channel not in top:
+            top.append(cl.channel)
+        if len(top) == 4:
+            break
+    if not top:
+        top = channels[:4]
+    fig = Figure(figsize=(10, 2.6 * ((len(top) + 1) // 2)), constrained_layout=True)
+    axes = np.atleast_2d(fig.subplots((len(top) + 1) // 2, 2))
+    mid = 0.5 * (edges[1:] + edges[:-1])
+    for k, ch in enumerate(top):
+        ax = axes[k // 2, k % 2]
+        c = channels.index(ch)
+        for cube, lab, col in ((R, "calibrated", "tab:red"), (R_after, "after", "tab:blue")):
+            m = np.nanmean(cube[:, c, :], axis=0)
+            s = np.nanstd(cube[:, c, :], axis=0) / math.sqrt(max(cube.shape[0], 1))
+            ax.errorbar(mid, m, yerr=1.96 * s, label=lab, color=col, capsize=2)
+        ax.axhline(0, color="k", lw=0.6)
+        ax.set_title(f"{ch}: mean residual (measured − model)", fontsize=9)
+        ax.set_xlabel("stance phase [%]")
+        ax.set_ylabel(channel_unit(ch))
+        ax.legend(fontsize=7)
+    for k in range(len(top), axes.size):
+        axes[k // 2, k % 2].set_visible(False)
+    p = out / "residual_profiles.png"
+    fig.savefig(p, dpi=FIGURE_DPI)
+    paths.append(p)
+    return paths
+
+
+def _calibration_lines(d: Diagnosis) -> list[str]:
+    cal = d.calibration
+    eq = cal.equation_error
+    lines = []
+    for k, val in cal.values.items():
+        conv = (math.degrees if k == "phi_s" else (lambda x: 1e3 * x) if k == "touchdown_depth"
+                else (lambda x: x))
+        name = {"phi_s": "phi_s [deg]", "touchdown_depth": "touchdown depth [mm]"}.get(k, k)
+        gn = eq.ci_gn.get(k, [None, None])
+        bt = eq.ci_boot.get(k, [None, None])
+
+        def fmt(iv):
+            return "–" if iv[0] is None else f"[{conv(iv[0]):.4g}, {conv(iv[1]):.4g}]"
+        init = eq.initial.get(k, 0.0)
+        eqv = eq.values.get(k)
+        eq_txt = "–" if eqv is None else f"{conv(eqv):.4g}"
+        lines.append(f"| {name} | {conv(init):.4g} | {eq_txt} | {fmt(gn)} | {fmt(bt)} "
+                     f"| {conv(val):.4g} |")
+    return lines
+
+
+def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
+    """The one-page ``report.md``."""
+    v = d.verdict
+    eq = d.calibration.equation_error
+    lines = [f"# Diagnosis of `{d.data}`", "",
+             f"**Verdict ({v.status.replace('_', ' ')}):** {v.text}", "",
+             "## Calibration (own parameters)", "",
+             "| parameter | before | equation error | 95 % CI (Gauss–Newton) "
+             "| 95 % CI (trial bootstrap) | after replay refit |",
+             "|---|---|---|---|---|---|"]
+    lines += _calibration_lines(d)
+    lines += ["", f"{eq.n_samples} sinking samples from {eq.n_stances} stances; "
+              f"force residual {eq.rmse_before:.2f} N → {eq.rmse_after:.2f} N. "
+              + eq.note, "",
+              "## Candidate effects", "",
+              "| rank | effect | kind | held-out error reduction | ΔAICc | inclusion | main coefficient | added |",
+              "|---|---|---|---|---|---|---|---|"]
+    for r in d.ranking:
+        main = r.dominant_param()
+        p = r.params.get(main)
+        val = r.value_of(main)
+        ci = (f" [{p.boot_ci_lo:.3g}, {p.boot_ci_hi:.3g}]"
+              if p is not None and p.boot_ci_lo is not None else "")
+        inc = r.inclusion_probability
+        lines.append(f"| {r.rank} | {r.effect} | {r.kind} | "
+                     f"{100 * r.heldout_error_reduction:.1f} % | {r.delta_aicc:.0f} | "
+                     f"{'–' if inc is None else f'{inc:.2f}'} | {main} = {val:.4g}{ci} "
+                     f"{p.unit if p is not None else ''} | "
+                     f"{'**yes**' if r.added else 'no'} |")
+    if d.indistinguishable:
+        lines += ["", "## Candidates the data cannot tell apart", ""]
+        for g in d.indistinguishable:
+            lines.append(f"* {' vs '.join(g.effects)} (correlation {g.correlation:.2f}): "
+                         f"{g.experiment}")
+    loc = d.localization
+    lines += ["", "## Where the calibrated model fails", ""]
+    lines += [f"* {s}" for s in loc.where] or ["* no channel × phase cell with |t| ≥ "
+                                               f"{T_CELL:g}"]
+    if v.added:
+        lines += ["", "## After adding " + ", ".join(v.added), ""]
+        lines += [f"* {s}" for s in loc.unexplained_where] or ["* no structure left"]
+        red = d.heldout_reduction_by_channel
+        if red:
+            lines += ["", "| channel | held-out RMS before | after | reduction |", "|---|---|---|---|"]
+            for c, ch in red.items():
+                lines.append(f"| {c} | {ch.before:.4g} {ch.unit} | {ch.after:.4g} | "
+                             f"{100 * ch.reduction:.0f} % |")
+    lines += ["", "## Figures", ""] + [f"![{p.stem}]({p.name})" for p in figs]
+    lines += ["", "## Next step", "", f"`{d.recommended.validate_command}`", ""]
+    return "\n".join(lines)
+
+
+def write_outputs(d: Diagnosis, figs: Sequence[Path]) -> None:
+    """``diagnosis.json`` and ``report.md`` in ``d.out_dir``."""
+    out = d.out_dir
+    (out / DIAGNOSIS_FILE).write_text(d.to_json(), encoding="utf-8")
+    (out / REPORT_FILE).write_text(markdown(d, figs), encoding="utf-8")
+
+
+__all__ = ["figures", "markdown", "write_outputs", "FIGURE_DPI"]

@@ -1,0 +1,149 @@
+"""Replay of one stance window on the paper's decoupled planar models (``planar``).
+
+Paper Sec. II: sagittal 7-DoF and frontal 5-DoF (:mod:`granular_mpc.dynamics.planar`)
+driven by the mapped torques; each foot's force from the 3-D terrain law evaluated on its
+planar kinematics (x, z to the sagittal model; y, z to the frontal one).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+
+from ...dynamics.planar import (actuated_from_frontal, actuated_from_sagittal,
+                                build_planar_models, contact_jacobian, coriolis_matrix,
+                                frontal_from_actuated, frontal_torques, gravity_vector,
+                                mass_matrix, points, sagittal_from_actuated, sagittal_torques,
+                                swing_contact_jacobian)
+from ...robot.model import SIDES, Biped
+from ...robot.planar import frontal_view, sagittal_view
+from ...rotations import matrix_from_quat_xyzw, roll_pitch_from_quat_xyzw
+from ..prepare import StanceWindow
+from .model import ReplayModel, Variant
+from .outputs import replay_outputs, set_foot_state
+
+
+_PLANAR_CACHE: dict = {}
+
+
+def _planar(biped: Biped, side: str):
+    key = (id(biped), side)
+    if key not in _PLANAR_CACHE:
+        sag, fro = build_planar_models(biped, side)
+        _PLANAR_CACHE[key] = (sag, fro, sagittal_view(biped, side), frontal_view(biped, side))
+    return _PLANAR_CACHE[key]
+
+
+def _planar_kin(kin, x, y, z, pitch, vx, vy, vz, wy, R) -> None:
+    c, s_ = math.cos(pitch), math.sin(pitch)
+    kin[0:3] = (x, y, z + R)
+    kin[3:12] = (c, 0.0, -s_, 0.0, 1.0, 0.0, s_, 0.0, c)     # R_y(pitch), column-major
+    kin[12:15] = (vx, vy, vz)
+    kin[15:18] = (0.0, wy, 0.0)
+
+
+def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None = None) -> dict:
+    """Replay on the paper's decoupled sagittal + frontal models.
+
+    Both feet use the terrain law of the 3-D model evaluated on their planar kinematics:
+    the stance foot at C1 = (x_s, y_s, z_s), the other (swing) foot at the planar models'
+    swing contact point, pitch = calf angle + mount pitch, velocities from the contact
+    Jacobians. The x and z forces act on the sagittal model, y and z on the frontal one
+    (decoupled: each plane sees the same vertical force); the swing foot's force enters
+    through the swing contact Jacobian. Semi-implicit Euler at the plant step.
+    """
+    variant = variant or Variant()
+    biped = model.biped
+    side, i = w.side, w.foot
+    o = 1 - i
+    sag, fro, sv, fv = _planar(biped, side)
+    mdl = biped.model
+    data = mdl.createData()
+    q3, v3 = w.q0, w.v0
+    pin.forwardKinematics(mdl, data, q3, v3)
+    pin.updateFramePlacements(mdl, data)
+    R_B = matrix_from_quat_xyzw(q3[3:7])
+    w_W = R_B @ v3[3:6]
+    roll, pitch = roll_pitch_from_quat_xyzw(q3[3:7])
+    qa0, dqa0 = q3[biped.idx_q], v3[biped.idx_v]
+    R = biped.config.foot.radius
+    fid = biped.foot_frame[side]
+    vel = pin.getFrameVelocity(mdl, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+    c_W = data.oMf[fid].translation - np.array([0.0, 0.0, R])
+    qs = np.concatenate([sagittal_from_actuated(sv, qa0, pitch), [c_W[0], c_W[2]]])
+    dqs = np.concatenate([sagittal_from_actuated(sv, dqa0, w_W[1]), [vel.linear[0], vel.linear[2]]])
+    qf = np.concatenate([frontal_from_actuated(fv, qa0, roll), [c_W[1], c_W[2]]])
+    dqf = np.concatenate([frontal_from_actuated(fv, dqa0, w_W[0], velocity=True),
+                          [vel.linear[1], vel.linear[2]]])
+    fid_o = biped.foot_frame[SIDES[o]]
+    vel_o = pin.getFrameVelocity(mdl, data, fid_o, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+    cd = model.terrain.new_data(model.dt)
+    theta = model.theta_vector(variant.theta)
+    names = model.terrain.param_names
+    dz = float(variant.theta.get("touchdown_depth", 0.0))
+    for k_, fi in ((i, w.feet[i]), (o, w.feet[o])):
+        cd.feet[k_].params[:] = theta
+        cd.feet[k_].params[names.index("surface_height")] = fi.surface + dz
+        if fi.in_contact:
+            set_foot_state(cd.feet[k_], fi, vel.linear if k_ == i else vel_o.linear)
+    J = biped.joint_names
+    n = w.n
+    qa = np.full((n, 6), np.nan)
+    grf = np.full((n, 3), np.nan)
+    intr = np.full((n, 3), np.nan)
+    dt = model.dt
+    diverged = False
+    f = np.zeros(3)
+    Bs = np.vstack([np.eye(5), np.zeros((2, 5))])
+    Bf = np.vstack([np.eye(3), np.zeros((2, 3))])
+
+    def foot_force(k_, x, y, z, ptch, vx, vy, vz, wy):
+        buf = cd.feet[k_]
+        if z - w.feet[k_].surface - dz > 0.005 and buf.state[:, 6].max() < 0.5:
+            cd.skip(k_)
+            return np.zeros(3)
+        _planar_kin(buf.kin, x, y, z, ptch, vx, vy, vz, wy, R)
+        cd.evaluate(k_)
+        return buf.force.sum(axis=0)
+
+    try:
+        for k in range(n):
+            ts = sagittal_torques(sv, w.tau[k])
+            tf = frontal_torques(fv, w.tau[k])
+            for _ in range(model.steps_per_sample):
+                # stance foot at C1
+                f = foot_force(i, qs[5], qf[3], qs[6], qs[3] + sv.foot_mount_pitch,
+                               dqs[5], dqf[3], dqs[6], dqs[3])
+                # swing foot at the planar swing contact point
+                ps, pf = points(sag, qs), points(fro, qf)
+                Jsw_s, Jsw_f = swing_contact_jacobian(sag, qs), swing_contact_jacobian(fro, qf)
+                vs, vf = Jsw_s @ dqs, Jsw_f @ dqf
+                f_o = foot_force(o, ps["contact_swing"][0], pf["contact_swing"][0],
+                                 ps["contact_swing"][1], qs[1] + sv.foot_mount_pitch,
+                                 vs[0], vf[0], vs[1], dqs[1])
+                gs = (Bs @ ts + contact_jacobian(sag, qs).T @ np.array([f[0], f[2]])
+                      + Jsw_s.T @ np.array([f_o[0], f_o[2]])
+                      - coriolis_matrix(sag, qs, dqs) @ dqs - gravity_vector(sag, qs))
+                gf = (Bf @ tf + contact_jacobian(fro, qf).T @ np.array([f[1], f[2]])
+                      + Jsw_f.T @ np.array([f_o[1], f_o[2]])
+                      - coriolis_matrix(fro, qf, dqf) @ dqf - gravity_vector(fro, qf))
+                dqs = dqs + dt * np.linalg.solve(mass_matrix(sag, qs), gs)
+                dqf = dqf + dt * np.linalg.solve(mass_matrix(fro, qf), gf)
+                qs = qs + dt * dqs
+                qf = qf + dt * dqf
+                cd.commit()
+                if not (np.all(np.isfinite(qs)) and np.abs(dqs).max() < 200.0
+                        and np.abs(dqf).max() < 200.0):
+                    raise FloatingPointError
+            qa[k] = actuated_from_sagittal(sv, qs[:5]) + actuated_from_frontal(fv, qf[:3])
+            grf[k] = f
+            buf = cd.feet[i]
+            intr[k] = buf.diag[:, 2:5].mean(axis=0) if buf.state[:, 6].max() > 0.5 else 0.0
+    except (FloatingPointError, np.linalg.LinAlgError):
+        diverged = True
+    return replay_outputs(qa, grf, intr, np.zeros(n), diverged, variant, w, J)
+
+
+__all__ = ["replay_planar"]

@@ -1,0 +1,258 @@
+"""The compiled plant step (granular_mpc.dynamics.compiled, rigid_body_sx, step_sx) against
+the reference Pinocchio plant: rigid-body pieces, one step, N steps, both terrains, feet
+in contact and sinking, the PD law in the loop, joint effects, the trunk wrench, divergence."""
+from __future__ import annotations
+
+import casadi
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from granular_mpc.config import SimConfig
+from granular_mpc.dynamics import Plant
+from granular_mpc.dynamics import rigid_body_sx as rb
+from granular_mpc.dynamics.compiled import CompiledPlant
+from granular_mpc.exceptions import ConfigError, PlantDivergedError
+
+KP, KD = 150.0, 3.0
+
+
+@pytest.fixture(scope="module")
+def sand_pair(biped, sand):
+    plant = Plant(biped, sand, SimConfig())
+    return plant, CompiledPlant(plant)
+
+
+@pytest.fixture(scope="module")
+def rigid_pair(biped, rigid):
+    plant = Plant(biped, rigid, SimConfig())
+    return plant, CompiledPlant(plant)
+
+
+def _friction(q_a, dq_a):
+    """A traceable joint effect (numpy ufuncs work on CasADi symbols too)."""
+    return -0.05 * dq_a - 0.2 * np.tanh(dq_a / 0.2)
+
+
+@pytest.fixture(scope="module")
+def euler_pair(biped, sand):
+    plant = Plant(biped, sand, SimConfig(integrator="semi_implicit_euler"),
+                  joint_effects=(_friction,))
+    return plant, CompiledPlant(plant)
+
+
+def _contact_state(plant, rng, *, depth_mm=(-2.0, 12.0), settle_steps=4, v_sigma=0.2,
+                   v_down=0.3, tilt=0.03):
+    """Reference data with both feet pressed into the ground and moving (sinking).
+
+    Standing pose with random joint offsets, the lowest sole point ``depth`` below the
+    surface, random velocities biased downward; a few reference steps with a random
+    PD-held torque then give the patches a touchdown point and an elastic displacement.
+    """
+    biped = plant.biped
+    q_a = biped.actuated(biped.standing_configuration()) + rng.normal(0.0, 5 * tilt / 3, 6)
+    q = biped.standing_configuration(0.0, q_a=q_a)
+    quat = pin.Quaternion(pin.exp3(rng.normal(0.0, tilt, 3)))
+    q[3:7] = [quat.x, quat.y, quat.z, quat.w]
+    # the higher of the two soles' lowest points `depth` below the surface
+    surface = plant.terrain.surface_height
+    q[2] -= biped.lowest_sole_point(q).max() - surface + rng.uniform(*depth_mm) * 1e-3
+    v = rng.normal(0.0, v_sigma, biped.model.nv)
+    v[2] -= rng.uniform(0.0, v_down)
+    d = plant.new_data(q, v)
+    q_hold = q_a + rng.normal(0.0, 0.02, 6)
+    for _ in range(settle_steps):
+        plant.step(d, KP * (q_hold - d.q[biped.idx_q]) - KD * d.v[biped.idx_v])
+    return d, q_hold
+
+
+def _assert_same(fast, state, d, tol=1e-9):
+    L = fast.layout
+    ref = fast.state_from_data(d)
+    np.testing.assert_allclose(state.q, ref.q, rtol=0, atol=tol)
+    np.testing.assert_allclose(state.v, ref.v, rtol=tol, atol=tol * (1 + np.abs(ref.v).max()))
+    np.testing.assert_allclose(state.a, ref.a, rtol=tol, atol=tol * (1 + np.abs(ref.a).max()))
+    np.testing.assert_allclose(state.x[L.contact], ref.x[L.contact], rtol=tol,
+                               atol=tol * (1 + np.abs(ref.x[L.contact]).max()))
+    assert state.t == pytest.approx(d.t) and state.steps == d.steps
+
+
+# ------------------------------------------------------------------ rigid-body pieces
+def test_symbolic_aba_minv_kinematics_integrate_match_pinocchio(biped):
+    """ABA with external forces, M⁻¹τ, foot placement/velocity (LOCAL_WORLD_ALIGNED) and
+    integrate written in SX equal Pinocchio's at 20 random states."""
+    ca = casadi
+    model, data = biped.model, biped.create_data()
+    tree = rb.tree_from_model(model)
+    q, v = ca.SX.sym("q", model.nq), ca.SX.sym("v", model.nv)
+    tau, fx = ca.SX.sym("tau", model.nv), ca.SX.sym("f", 6 * len(tree))
+    pl = rb.placements(tree, q)
+    fext = [fx[6 * i:6 * i + 6] for i in range(len(tree))]
+    acc = ca.Function("aba", [q, v, tau, fx],
+                      [rb.aba(tree, pl, model.nv, tau, v=v, fext=fext,
+                              gravity=np.array(model.gravity.linear))])
+    minv = ca.Function("minv", [q, tau], [rb.aba(tree, pl, model.nv, tau)])
+    dv = ca.SX.sym("dv", model.nv)
+    integ = ca.Function("integrate", [q, dv], [rb.integrate(tree, q, dv)])
+    fid, jid = biped.foot_frame["right"], biped.foot_joint["right"]
+    P = model.frames[fid].placement
+    fk = ca.Function("fk", [q, v], list(rb.frame_kinematics(
+        pl, rb.velocities(tree, pl, v), jid, P.rotation, P.translation)))
+    rng = np.random.default_rng(12)
+    lo, hi = biped.position_limits
+    for k in range(20):
+        quat = rng.normal(size=4)
+        qn = biped.q_from_parts(rng.uniform(-1, 1, 3), quat / np.linalg.norm(quat),
+                                rng.uniform(lo, hi))
+        vn, tn, fn = (rng.normal(0, 1, model.nv), rng.normal(0, 5, model.nv),
+                      rng.normal(0, 5, 6 * len(tree)))
+        forces = pin.StdVec_Force()
+        forces.append(pin.Force.Zero())
+        for i in range(len(tree)):
+            forces.append(pin.Force(fn[6 * i:6 * i + 6]))
+        a_ref = pin.aba(model, data, qn, vn, tn, forces)
+        np.testing.assert_allclose(np.array(acc(qn, vn, tn, fn)).ravel(), a_ref,
+                                   rtol=1e-11, atol=1e-11 * np.abs(a_ref).max())
+        M_inv = pin.computeMinverse(model, data, qn)
+        M_inv = np.triu(M_inv) + np.triu(M_inv, 1).T
+        np.testing.assert_allclose(np.array(minv(qn, tn)).ravel(), M_inv @ tn,
+                                   rtol=1e-10, atol=1e-10 * np.abs(M_inv @ tn).max())
+        step = rng.normal(0, 1, model.nv) * (1e-6 if k % 2 else 0.3)  # both exp6 branches
+        np.testing.assert_allclose(np.array(integ(qn, step)).ravel(),
+                                   pin.integrate(model, qn, step), atol=1e-14)
+        pin.forwardKinematics(model, data, qn, vn)
+        oMf = pin.updateFramePlacement(model, data, fid)
+        vel = pin.getFrameVelocity(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        p, R, lin, ang = (np.array(e) for e in fk(qn, vn))
+        np.testing.assert_allclose(p.ravel(), oMf.translation, atol=1e-14)
+        np.testing.assert_allclose(R, oMf.rotation, atol=1e-14)
+        np.testing.assert_allclose(lin.ravel(), vel.linear, atol=1e-13)
+        np.testing.assert_allclose(ang.ravel(), vel.angular, atol=1e-13)
+
+
+# ------------------------------------------------------------------ the whole step
+@pytest.mark.parametrize("pair", ["sand_pair", "rigid_pair"])
+def test_single_step_matches_reference_in_contact(pair, request):
+    """One compiled step equals one reference step from 8 random in-contact states (feet
+    pressed in and sinking), with the torque held and with the PD law in the loop."""
+    plant, fast = request.getfixturevalue(pair)
+    rng = np.random.default_rng(1200 + len(pair))
+    biped = plant.biped
+    in_contact = 0
+    for k in range(8):
+        d, q_hold = _contact_state(plant, rng)
+        in_contact += d.foot_in_contact(0) + d.foot_in_contact(1)
+        s = fast.state_from_data(d)
+        if k % 2:
+            tau = rng.normal(0.0, 3.0, 6)
+            s1 = fast.step(s, tau)
+            plant.step(d, tau)
+        else:
+            s1 = fast.step(s, q_ref=q_hold, kp=KP, kd=KD)
+            plant.step(d, KP * (q_hold - d.q[biped.idx_q]) - KD * d.v[biped.idx_v])
+        _assert_same(fast, s1, d)
+        for foot in (0, 1):
+            np.testing.assert_allclose(s1.foot_force(foot), d.foot_force(foot),
+                                       rtol=1e-9, atol=1e-7)
+            assert s1.foot_in_contact(foot) == d.foot_in_contact(foot)
+    assert in_contact >= 10          # most of the 16 feet really are in contact
+
+
+@pytest.mark.parametrize("pair", ["sand_pair", "rigid_pair"])
+def test_n_steps_match_reference_while_sinking(pair, request):
+    """40 compiled steps (chunked calls, PD in the loop) equal 40 reference steps from the
+    first step of fresh data (the Verlet start), both feet in contact throughout (on sand
+    sinking meanwhile); then 23 steps with a held torque (2 chunks + 3 single steps)."""
+    plant, fast = request.getfixturevalue(pair)
+    biped = plant.biped
+    rng = np.random.default_rng(77)
+    sand = plant.terrain.kind == "granular"
+    d, q_hold = _contact_state(plant, rng, depth_mm=(3.0, 6.0) if sand else (0.1, 0.4),
+                               settle_steps=0, v_sigma=0.02,
+                               v_down=0.1 if sand else 0.0, tilt=0.003)
+    s = fast.state_from_data(d)
+    assert not s.started
+    s = fast.step(s, n_steps=40, q_ref=q_hold, kp=KP, kd=KD)
+    depths = []
+    for _ in range(40):
+        plant.step(d, KP * (q_hold - d.q[biped.idx_q]) - KD * d.v[biped.idx_v])
+        assert d.foot_in_contact(0) and d.foot_in_contact(1)
+        depths.append(d.contact.feet[0].diag[:, 0].max())
+    _assert_same(fast, s, d, tol=1e-8)
+    assert s.foot_in_contact(0) and s.foot_in_contact(1)
+    if sand:
+        assert depths[-1] > depths[0] + 2e-4            # the feet sank meanwhile
+    tau = rng.normal(0.0, 2.0, 6)
+    s = fast.step(s, tau, n_steps=23)
+    for _ in range(23):
+        plant.step(d, tau)
+    _assert_same(fast, s, d, tol=1e-8)
+
+
+def test_semi_implicit_euler_with_joint_effect_and_wrench(euler_pair):
+    """The semi-implicit Euler step with a traced joint effect and a constant trunk wrench,
+    in contact, equals the reference over 15 steps."""
+    plant, fast = euler_pair
+    rng = np.random.default_rng(5)
+    d, q_hold = _contact_state(plant, rng)
+    wrench = np.array([3.0, -2.0, 5.0, 0.3, 0.1, -0.2])
+    d.base_wrench = wrench
+    s = fast.state_from_data(d)
+    tau = rng.normal(0.0, 2.0, 6)
+    s = fast.step(s, tau, n_steps=15, wrench=wrench)
+    for _ in range(15):
+        plant.step(d, tau)
+    _assert_same(fast, s, d, tol=1e-8)
+
+
+def test_end_stops_free_flight(rigid_pair):
+    """Far from the ground, joints beyond their limits (end stops active) and fast random
+    velocities: compiled and reference agree over 10 steps."""
+    plant, fast = rigid_pair
+    biped = plant.biped
+    rng = np.random.default_rng(9)
+    lo, hi = biped.position_limits
+    for _ in range(4):
+        q_a = np.where(rng.random(6) < 0.5, lo - 0.05, hi + 0.05)
+        quat = rng.normal(size=4)
+        q = biped.q_from_parts([0.0, 0.0, 2.0], quat / np.linalg.norm(quat), q_a)
+        d = plant.new_data(q, rng.normal(0.0, 1.0, biped.model.nv))
+        s = fast.state_from_data(d)
+        tau = rng.normal(0.0, 2.0, 6)
+        s = fast.step(s, tau, n_steps=10)
+        for _ in range(10):
+            plant.step(d, tau)
+        _assert_same(fast, s, d)
+
+
+def test_divergence_raises(rigid_pair):
+    """A state beyond the velocity bound raises PlantDivergedError with the time."""
+    plant, fast = rigid_pair
+    q = plant.biped.standing_configuration(1.0)
+    v = np.zeros(plant.biped.model.nv)
+    v[0] = 2.0 * plant.sim.max_speed
+    with pytest.raises(PlantDivergedError) as err:
+        fast.step(fast.initial_state(q, v), n_steps=3)
+    assert err.value.reason == "velocity-bound"
+
+
+def test_untraceable_joint_effect_rejected(biped, rigid):
+    """A joint effect that only works on floats is refused (not silently dropped)."""
+    def floats_only(q_a, dq_a):
+        return np.array([-0.1 * float(x) for x in dq_a])
+
+    with pytest.raises(ConfigError, match="joint effect"):
+        CompiledPlant(Plant(biped, rigid, SimConfig(), joint_effects=(floats_only,)))
+
+
+def test_state_is_immutable_and_typed(sand_pair):
+    """States are frozen, carry read-only arrays and the step does not modify its input."""
+    plant, fast = sand_pair
+    s0 = fast.initial_state(plant.biped.standing_configuration(0.01))
+    x0 = s0.x.copy()
+    s1 = fast.step(s0, n_steps=2)
+    np.testing.assert_array_equal(s0.x, x0)
+    assert s1.steps == 2 and s1.t == pytest.approx(2 * plant.dt)
+    with pytest.raises(ValueError):
+        s1.x[0] = 1.0
+    assert s1.contact.shape == (2, fast.layout.n_patches, fast.layout.patch_state)
