@@ -13,7 +13,8 @@ Figures (all measured in this process, side by side):
   function, the PD law inside it, ``chunk`` = 10 steps per call), measured right after the
   reference from the same settled state; ``plant_compiled_speedup_sand`` is the ratio.
 * plant_steps_per_s_sand_compiled_per_step — compiled, one call per step with the PD
-  torque computed in Python (what a Python controller stepping the plant sees).
+  torque computed in Python and written into ``CompiledData.tau``
+  (``CompiledPlant.advance``: what a Python controller stepping the plant sees).
 * contact_call_us_jit / _vm — one evaluation of a foot's compiled contact function (2
   patches) through its buffer interface, C-compiled vs CasADi's VM (GRANULAR_MPC_JIT=0);
   contact_jit_speedup is their ratio.
@@ -106,9 +107,12 @@ def compiled_rates(biped, terrain, steps=20000):
     chunked = steps / (time.perf_counter() - t0)
     assert s1.foot_in_contact(0) and s1.foot_in_contact(1), "a foot left the ground"
     n = steps // 4
+    d = fast.data_from_state(s)
+    iq, iv = biped.idx_q, biped.idx_v
     t0 = time.perf_counter()
     for _ in range(n):
-        s = fast.step(s, kp * (q_hold - s.q[biped.idx_q]) - kd * s.v[biped.idx_v])
+        d.tau[:] = kp * (q_hold - d.q[iq]) - kd * d.v[iv]
+        fast.advance(d)
     per_step = n / (time.perf_counter() - t0)
     return chunked, per_step
 

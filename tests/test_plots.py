@@ -103,12 +103,13 @@ def test_rolling_cot_bands_equal_numpy(synth, tmp_path):
     d = np.degrees(d - d[:, :1])
     b = out.data[out.data.channel == "dtheta_r"]
     assert np.allclose(b["mean"], d.mean(0)) and np.allclose(b["sd"], d.std(0, ddof=1))
-    # independent cumulative CoT end value per stance: E/(W d) over the stance
+    # independent cumulative CoT end value per stance: E/(W d) over the stance, E under the
+    # default reading Σ_i |τ_i q̇_i| (docs/analysis.md §1)
     ends = []
     joints = [c[4:] for c in synth.df.columns if c.startswith("tau_")]
     for s, a, bb in synth.segments:
         part = synth.df.iloc[a:bb]
-        p = np.abs(sum(part[f"tau_{j}"] * part[f"dq_{j}"] for j in joints)).to_numpy()
+        p = sum(np.abs(part[f"tau_{j}"] * part[f"dq_{j}"]) for j in joints).to_numpy()
         t = part.time.to_numpy()
         e = np.sum(0.5 * (p[1:] + p[:-1]) * np.diff(t))
         dist = np.sum(0.5 * (part.com_vx.to_numpy()[1:] + part.com_vx.to_numpy()[:-1]) * np.diff(t))

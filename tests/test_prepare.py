@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 import pinocchio as pin
 import pytest
+from scipy.signal import savgol_coeffs
 
 from granular_mpc.robot.kinematics import leg_geometry
 from granular_mpc.robot.model import SIDES
@@ -84,7 +85,7 @@ def windows(dataset, biped):
 # ------------------------------------------------------------------ geometry helpers
 
 
-def _arc_lowest_points(biped, oMf, n=200001):
+def _arc_lowest_points(biped, oMf, n=20001):
     """Lowest point of each slice's sole arc by dense sampling of the arc in the foot frame
     (independent of patch_points' closed form)."""
     foot = biped.config.foot
@@ -101,11 +102,11 @@ def _arc_lowest_points(biped, oMf, n=200001):
 def test_patch_points_are_the_lowest_points_of_the_sole_arcs(biped):
     """Random foot orientations, including ones where the lowest point is an arc end."""
     rng = np.random.default_rng(0)
-    for _ in range(30):
+    for _ in range(15):
         R = pin.rpy.rpyToMatrix(*rng.uniform([-0.3, -1.2, -3.0], [0.3, 1.2, 3.0]))
         oMf = pin.SE3(R, rng.uniform(-1, 1, 3))
         ref, ds = _arc_lowest_points(biped, oMf)
-        # the sampled arc is within one sample spacing (R·Δψ ≈ 3e-7 m) of the true point
+        # the sampled arc is within one sample spacing (R·Δψ ≈ 5e-6 m) of the true point
         np.testing.assert_allclose(patch_points(biped, oMf), ref, atol=ds)
 
 
@@ -156,24 +157,23 @@ def test_smoothing_reproduces_quadratics_and_differentiates_them(biped, trial):
 
 
 def test_smoothing_reduces_white_noise_by_the_savgol_factor(biped, trial):
-    """Quadratic SG over 15 samples: the centre-point noise gain is √(Σ c_i²) = 0.42 for
-    white noise; measured over 3 noise seeds here, bound 0.5 (the edges, fitted by
-    polynomial extrapolation, are excluded)."""
-    from scipy.signal import savgol_coeffs
-
+    """Quadratic SG over 15 samples: the centre-point noise gain is √(Σ c_i²) = 0.389 for
+    white noise. Pooled over seeds 1–3 (138 interior samples each; the edges, fitted by
+    polynomial extrapolation, are excluded) the RMS ratio must be within ±35 % of it:
+    pooled ratios of ten other seed triples (100–129) measured 0.317–0.437 (−19 %/+12 %)."""
     gain = float(np.sqrt(np.sum(savgol_coeffs(15, 2) ** 2)))
-    assert gain == pytest.approx(0.4235, abs=1e-3)
-    ratios = []
+    assert gain == pytest.approx(0.3888, abs=1e-3)
+    clean = _joint_traj(biped, trial["time"].to_numpy())[0][:, 2]
+    e2 = n2 = 0.0
     for seed in (1, 2, 3):
         rng = np.random.default_rng(seed)
         noisy = trial.copy()
         noise = 1e-3 * rng.normal(size=len(trial))
         noisy["q_left_knee"] += noise
         st = TrialStates(biped, noisy, biped.joint_names, FS, window=15)
-        clean = _joint_traj(biped, trial["time"].to_numpy())[0][:, 2]
-        err = (st.qa[:, 2] - clean)[7:-7]
-        ratios.append(err.std() / noise[7:-7].std())
-    assert max(ratios) < 0.5 and min(ratios) > 0.3, ratios
+        e2 += float(np.sum((st.qa[:, 2] - clean)[7:-7] ** 2))
+        n2 += float(np.sum(noise[7:-7] ** 2))
+    assert math.sqrt(e2 / n2) == pytest.approx(gain, rel=0.35)
 
 
 def test_quaternion_sign_flips_and_body_frame_velocity(biped, trial):

@@ -15,8 +15,7 @@ from typing import Sequence
 import numpy as np
 import pandas as pd
 
-from ..columns import BASE_QUATERNION
-from ..rotations import rpy_rows_from_quat_wxyz
+from .attitude import trunk_rpy
 from .cot import (COT_READINGS, DEFAULT_COT_READING, STANDARD_GRAVITY, CotReadings,
                   cot_readings_from_arrays, log_joints, log_window, resolve_weight)
 from .cot_decoupled import DecoupledCotReadings, cot_decoupled_readings
@@ -64,7 +63,7 @@ class RunCot:
 def trunk_pitch_roll(log: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
     """Trunk pitch (about +y) and roll (about +x) [rad] per row, R_W_B = Rz Ry Rx, from
     ``base_qw, base_qx, base_qy, base_qz``."""
-    rpy = rpy_rows_from_quat_wxyz(log[list(BASE_QUATERNION)].to_numpy(dtype=float))
+    rpy = trunk_rpy(log)
     return rpy[:, 1], rpy[:, 0]
 
 

@@ -14,10 +14,12 @@ from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
-from ..columns import (COM_POSITION, FOOT_SIDES, INTRUSION_COLUMNS, STANCE, TIME,
-                       foot_column, joint_columns)
+from ..columns import COM_POSITION, FOOT_SIDES, TIME, foot_column
 from ..output import json_safe
-from . import cot_decoupled, cot_from_log, segment_stances
+from .attitude import trunk_rpy
+from .cot import COT_READINGS
+from .cot_readings import cot_readings_report
+from .metrics import stance_peaks
 
 if TYPE_CHECKING:  # the runner sits above analysis: types only, no import at run time
     from ..runner.build import Simulation
@@ -29,10 +31,12 @@ SUMMARY_KEYS = (
     "sim_time_s", "wall_time_s", "realtime_factor", "fell", "cot", "cot_decoupled",
     "sinkage_peak_mm_mean", "slip_mm_mean", "mpc_solve_ms", "wbc_solve_ms", "qp_failures",
     "lateral_drift_m", "max_roll_deg", "max_pitch_deg", "complete", "reason",
+    "cot_reading", "cot_abs_per_joint", "cot_abs_net", "cot_positive",
+    "cot_decoupled_abs_per_joint", "cot_decoupled_abs_net", "cot_decoupled_positive",
+    "stance_source",
 )
 
 _COM_X, _COM_Y, _ = COM_POSITION
-_INTRUSION_X, _INTRUSION_Y, _INTRUSION_Z = INTRUSION_COLUMNS
 
 
 def solve_time_stats(values: Sequence[float]) -> dict:
@@ -79,32 +83,20 @@ def averaging_window(sim: Simulation, t_first: float, t_last: float, ramp_durati
 
 
 def stance_metrics(log, t_start: float | None = None) -> dict:
-    """Per-stance peaks of the stance foot's sinkage and slip, averaged over stances.
+    """Per-stance peak sinkage and slip over the *planned* stances (the historical
+    segmentation; the summary uses touchdown to lift-off, :func:`~.metrics.stance_peaks`).
 
-    Stances: complete single-stance segments (:func:`granular_mpc.analysis.segment_stances`,
-    planned stance label and foot in contact) starting at or after ``t_start`` (all
-    complete stances if none does). Per stance: peak sinkage = max ``intrusion_z`` (z_s,
-    depth below the touchdown point, positive deeper); peak slip = max
-    ‖(``intrusion_x``, ``intrusion_y``)‖ (horizontal displacement of the contact point from
-    its touchdown point, which includes the rolling of the sole).
+    Stances: complete single-stance segments of the planned stance label with the foot in
+    contact, starting at or after ``t_start`` (all complete stances if none does). Per
+    stance: peak sinkage = max ``intrusion_z`` (z_s, depth below the touchdown point,
+    positive deeper); peak slip = max ‖(``intrusion_x``, ``intrusion_y``)‖.
 
     Returns:
         ``sinkage_peak_mm_mean``, ``slip_mm_mean`` [mm] (None without stances), ``n_stances``.
     """
-    segs = segment_stances(log)
-    if t_start is not None and len(segs):
-        later = segs[segs["t_start"] >= t_start - 1e-9]
-        if len(later):
-            segs = later
-    if len(segs) == 0:
-        return {"sinkage_peak_mm_mean": None, "slip_mm_mean": None, "n_stances": 0}
-    z = log[_INTRUSION_Z].to_numpy(dtype=float)
-    xy = np.hypot(log[_INTRUSION_X].to_numpy(dtype=float),
-                  log[_INTRUSION_Y].to_numpy(dtype=float))
-    sink = [z[s.row_start:s.row_stop].max() for s in segs.itertuples(index=False)]
-    slip = [xy[s.row_start:s.row_stop].max() for s in segs.itertuples(index=False)]
-    return {"sinkage_peak_mm_mean": 1e3 * float(np.mean(sink)),
-            "slip_mm_mean": 1e3 * float(np.mean(slip)), "n_stances": int(len(segs))}
+    peaks = stance_peaks(log, t_start, source="planned")
+    return {"sinkage_peak_mm_mean": peaks.sinkage_peak_mm_mean,
+            "slip_mm_mean": peaks.slip_mm_mean, "n_stances": peaks.n_stances}
 
 
 def summarize(log, sim: Simulation, state: LoopState, *, wall_time_s: float,
@@ -112,12 +104,16 @@ def summarize(log, sim: Simulation, state: LoopState, *, wall_time_s: float,
     """The run summary (``summary.json``).
 
     Walking metrics are averaged over the window of :func:`averaging_window`:
-    ``mean_speed_mps`` = CoM forward displacement / window duration; ``cot`` =
-    :func:`granular_mpc.analysis.cot_from_log` (paper definition, |net power|) and
-    ``cot_decoupled`` = :func:`granular_mpc.analysis.cot_decoupled.cot_decoupled`
-    (``actuation="exact"``) over the same window (None when the CoM did not move
-    forward); ``sinkage_peak_mm_mean`` and ``slip_mm_mean`` from :func:`stance_metrics`
-    over the stances in the window. Whole run: ``lateral_drift_m`` (final − initial CoM
+    ``mean_speed_mps`` = CoM forward displacement / window duration. Cost of transport
+    over the same window under every reading of the paper's E (docs/analysis.md §1,
+    :func:`granular_mpc.analysis.cot_readings_report`): ``cot_abs_per_joint``
+    (Σ_i |τ_i q̇_i|), ``cot_abs_net`` (|Σ_i τ_i q̇_i|, the literal reading),
+    ``cot_positive`` (Σ_i max(τ_i q̇_i, 0)), and the decoupled sagittal + frontal form of
+    each (``cot_decoupled_<reading>``); ``cot`` and ``cot_decoupled`` are the default
+    reading (``cot_reading``: ``abs_per_joint``). ``sinkage_peak_mm_mean`` and
+    ``slip_mm_mean``: per-stance peaks averaged over the stances in the window, stances
+    from touchdown to lift-off (:func:`granular_mpc.analysis.stance_peaks`;
+    ``stance_source`` says from what). Whole run: ``lateral_drift_m`` (final − initial CoM
     y), ``max_roll_deg``, ``max_pitch_deg`` (max |angle|), solver times from the
     controller's tick records, ``qp_failures``. A metric that fails is left ``None`` and
     its error is recorded under ``notes``.
@@ -133,9 +129,6 @@ def summarize(log, sim: Simulation, state: LoopState, *, wall_time_s: float,
     Returns:
         A JSON-safe dict (NaN/inf → ``None``) holding at least :data:`SUMMARY_KEYS`.
     """
-    # viz.plots pulls in matplotlib: imported only when a summary is computed
-    from ..viz.plots import trunk_rpy
-
     sc = sim.scenario
     biped = sim.biped
     pd, cd = state.plant, state.controller
@@ -164,8 +157,12 @@ def summarize(log, sim: Simulation, state: LoopState, *, wall_time_s: float,
         "fell": state.fall is not None,
         "fall_time_s": state.fall.time if state.fall else None,
         "fall_reason": state.fall.reason if state.fall else None,
-        "cot": None, "cot_decoupled": None, "energy_J": None, "distance_m": None,
+        "cot": None, "cot_decoupled": None, "cot_reading": None, "energy_J": None,
+        "distance_m": None,
+        **{f"cot_{r}": None for r in COT_READINGS},
+        **{f"cot_decoupled_{r}": None for r in COT_READINGS},
         "sinkage_peak_mm_mean": None, "slip_mm_mean": None, "n_stances": 0,
+        "stance_source": None,
         "mpc_solve_ms": solve_time_stats([]), "wbc_solve_ms": solve_time_stats([]),
         "qp_failures": 0,
         "lateral_drift_m": None, "max_roll_deg": None, "max_pitch_deg": None,
@@ -215,21 +212,15 @@ def summarize(log, sim: Simulation, state: LoopState, *, wall_time_s: float,
         tt = part[TIME].to_numpy(dtype=float)
         out["mean_speed_mps"] = float((part[_COM_X].iloc[-1] - part[_COM_X].iloc[0])
                                       / (tt[-1] - tt[0]))
-        res = safe("cot", lambda: cot_from_log(log, biped=biped, t_start=a, t_end=b))
-        if res is not None:
-            out.update(cot=res.cot, energy_J=res.energy_J, distance_m=res.distance_m)
-
-            def dec():
-                js = list(biped.joint_names)
-                prt = np.radians(trunk_rpy(part))
-                return cot_decoupled(
-                    tt, part[joint_columns(js, "q")].to_numpy(float),
-                    part[joint_columns(js, "dq")].to_numpy(float),
-                    part[joint_columns(js, "tau")].to_numpy(float),
-                    prt[:, 1], prt[:, 0], part[STANCE].astype(str).to_numpy(),
-                    biped.weight, res.distance_m, biped=biped)
-            out["cot_decoupled"] = safe("cot_decoupled", dec)
-    out.update(safe("stances", lambda: stance_metrics(log, a), {}))
+        rep = safe("cot", lambda: cot_readings_report(log, biped=biped, t_start=a, t_end=b))
+        if rep is not None:
+            default = rep.full.get(rep.default_reading)
+            out.update(cot=default.cot, energy_J=default.energy_J,
+                       distance_m=default.distance_m, cot_reading=rep.default_reading,
+                       cot_decoupled=(None if rep.decoupled is None
+                                      else rep.decoupled.get(rep.default_reading)))
+            out.update(rep.summary_items())
+    out.update(safe("stances", lambda: stance_peaks(log, a).summary_items(), {}))
     out["notes"] = notes
     return json_safe(out)
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal, Mapping, Optional, Union
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import AfterValidator, BeforeValidator, Field, field_validator, model_validator
 
 from .base import FiniteFloat, NonNegFloat, PositiveFloat, StrictModel
 from .controller import CommandConfig, ControllerConfig
@@ -17,14 +17,78 @@ from .robot import RobotConfig
 from .terrain import GranularTerrainConfig, RigidTerrainConfig, TerrainConfig
 
 
+def _per_joint_list(value: Any) -> Any:
+    """One number → the same number for the three joints of a leg (abd, hip, knee)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return [value] * 3
+    return value
+
+
+def _per_joint_check(positive: bool):
+    def check(values: list[float]) -> list[float]:
+        if len(values) not in (3, 6):
+            raise ValueError(f"give one number, three (abd, hip, knee: both legs) or six "
+                             f"(actuator order), not {len(values)} numbers")
+        if any((x <= 0.0 if positive else x < 0.0) for x in values):
+            raise ValueError(f"every value must be {'> 0' if positive else '≥ 0'}")
+        return values
+    return check
+
+
+PerJointNonNeg = Annotated[list[FiniteFloat], BeforeValidator(_per_joint_list),
+                           AfterValidator(_per_joint_check(False))]
+"""Per actuated joint, each ≥ 0: one number (every joint), three (abd, hip, knee; both legs)
+or six (actuator order)."""
+PerJointPositive = Annotated[list[FiniteFloat], BeforeValidator(_per_joint_list),
+                             AfterValidator(_per_joint_check(True))]
+"""As :data:`PerJointNonNeg`, each > 0."""
+
+
+class JointFrictionConfig(StrictModel):
+    """Coulomb + viscous friction in every actuated joint (plant only), joint side:
+    τ_f = −τ_c tanh(q̇ / ω_s) − b q̇. Defaults: Mini-Cheetah-class actuators
+    (docs/model.md §3.1); off unless ``enabled``."""
+
+    enabled: bool = Field(False, description="Apply joint friction in the plant.")
+    coulomb: PerJointNonNeg = Field(0.2, description="Coulomb friction torque τ_c [N·m].")
+    viscous: PerJointNonNeg = Field(0.01, description="Viscous friction coefficient b [N·m·s/rad].")
+    velocity_scale: PositiveFloat = Field(0.1, description="ω_s of the tanh that smooths sign(q̇) [rad/s].")
+
+
+class MotorConfig(StrictModel):
+    """A geared electric motor per actuated joint (plant only): reflected rotor inertia,
+    torque–speed envelope, copper loss. Defaults: Mini-Cheetah-class actuators
+    (docs/model.md §3.1); off unless ``enabled`` (ideal torque sources)."""
+
+    enabled: bool = Field(False, description="Apply the motor model in the plant.")
+    gear_ratio: PerJointPositive = Field(default_factory=lambda: [6.0, 6.0, 9.33], description="Gear ratio N [-].")
+    rotor_inertia: PerJointNonNeg = Field(63.0e-6, description="Rotor inertia J_r about its spin axis [kg·m²].")
+    reflected_inertia: bool = Field(True, description="Add N² J_r to the joint's diagonal of the mass matrix.")
+    torque_speed_limit: bool = Field(True, description="Clip the torque to the motor's torque–speed envelope.")
+    peak_torque: Optional[PerJointPositive] = Field(None, description="Peak joint torque [N·m]; null: the URDF's effort limits.")
+    stall_torque: PerJointPositive = Field(default_factory=lambda: [62.4, 62.4, 97.1], description="Joint torque of the voltage line at q̇ = 0 [N·m].")
+    no_load_speed: PerJointPositive = Field(default_factory=lambda: [40.0, 40.0, 25.7], description="Joint speed where the voltage line reaches zero torque [rad/s].")
+    torque_constant: PerJointPositive = Field(0.075, description="Motor torque per ampere k_t [N·m/A].")
+    winding_resistance: PerJointNonNeg = Field(0.2595, description="Copper-loss resistance R_w in P = R_w i² [Ω].")
+
+
+class ActuatorsConfig(StrictModel):
+    """Joint losses and motor model of the plant (all off by default: ideal actuators).
+    The controller does not see them (docs/model.md §3.1)."""
+
+    friction: JointFrictionConfig = Field(default_factory=JointFrictionConfig)
+    motor: MotorConfig = Field(default_factory=MotorConfig)
+
+
 class SimConfig(StrictModel):
-    """Plant integration: step, integrator, duration, seed, divergence bound."""
+    """Plant integration: step, integrator, duration, seed, divergence bound, actuators."""
 
     dt: float = Field(5.0e-4, gt=0.0, le=0.01, description="Plant integration step [s].")
     integrator: Literal["verlet", "semi_implicit_euler"] = "verlet"
     duration: PositiveFloat = Field(2.0, description="Simulated time [s].")
     seed: int = 0
     max_speed: PositiveFloat = Field(200.0, description="Divergence bound on |v| [m/s, rad/s].")
+    actuators: ActuatorsConfig = Field(default_factory=ActuatorsConfig, description="Joint losses and motor model of the plant (off: ideal actuators).")
 
 
 class DropConfig(StrictModel):
@@ -186,5 +250,6 @@ class ScenarioConfig(StrictModel):
         return 0.0 if self.terrain.kind == "rigid" else -0.005
 
 
-__all__ = ["SimConfig", "DropConfig", "Vector3", "FallConfig", "PushConfig", "GuideRigConfig",
+__all__ = ["PerJointNonNeg", "PerJointPositive", "JointFrictionConfig", "MotorConfig",
+           "ActuatorsConfig", "SimConfig", "DropConfig", "Vector3", "FallConfig", "PushConfig", "GuideRigConfig",
            "MetricsConfig", "OutputConfig", "SweepConfig", "ScenarioConfig"]

@@ -13,9 +13,10 @@ bulldozing length, the surface plane, and the parameters of the terrain's effect
 (another set is another compiled model).
 
 One call runs ``CompiledPlant.functions["plant_chunk"]`` (``chunk`` steps) for all robots
-through CasADi's ``map``: ``"thread"`` splits the robots over ``threads`` OS threads (the
-compiled code holds no Python lock), ``"serial"`` runs them in turn, ``"openmp"`` compiles
-an OpenMP map for this ``n_robots`` once (cached like the plant). Robots whose state
+through CasADi's ``map`` of the compiled function: ``"thread"`` splits the robots over
+``threads`` OS threads (the compiled code runs without the Python lock), ``"serial"`` runs
+them in turn. (CasADi's ``"openmp"`` map is not offered: the PyPI CasADi wheels are built
+without OpenMP and fall back to serial evaluation.) Robots whose state
 diverges are flagged in :attr:`BatchState.diverged` (no exception: the others go on);
 reset them with :meth:`BatchPlant.reset`.
 """
@@ -29,11 +30,10 @@ import casadi as ca
 import numpy as np
 
 from ..exceptions import ConfigError
-from .codegen import compile_functions
 from .compiled import CompiledPlant
 from .step_sx import AUX_NAMES, StepLayout
 
-PARALLELIZATIONS = ("thread", "serial", "openmp")
+PARALLELIZATIONS = ("thread", "serial")
 
 
 @dataclass(frozen=True)
@@ -95,7 +95,7 @@ class BatchPlant:
     Args:
         compiled: the :class:`CompiledPlant` (model, terrain law, step settings).
         n_robots: N.
-        parallelization: ``"thread"`` (default), ``"serial"`` or ``"openmp"``.
+        parallelization: ``"thread"`` (default) or ``"serial"``.
         threads: worker threads (default: the number of CPUs).
     """
 
@@ -112,17 +112,9 @@ class BatchPlant:
         self.threads = int(threads or os.cpu_count() or 1)
         self.parallelization = parallelization
         names = ("plant_chunk", "plant_step", "plant_start")
-        if parallelization == "openmp":
-            maps = [compiled.symbolic[n].map(n_robots, "openmp") for n in names]
-            maps = [ca.Function(f"{n}_omp{n_robots}", [m.mx_in(i) for i in range(m.n_in())],
-                                m(*[m.mx_in(i) for i in range(m.n_in())]))
-                    for n, m in zip(names, maps)]
-            built = compile_functions(f"plant_batch{n_robots}", maps)
-            fns = [built[f"{n}_omp{n_robots}"] for n in names]
-        else:
-            fns = [compiled.functions[n].map(n_robots, parallelization, self.threads)
-                   if parallelization == "thread" else compiled.functions[n].map(n_robots)
-                   for n in names]
+        fns = [compiled.functions[n].map(n_robots, "thread", self.threads)
+               if parallelization == "thread" else compiled.functions[n].map(n_robots)
+               for n in names]
         self._chunk, self._step1, self._start = (_BatchCaller(f, n_robots) for f in fns)
 
     # ------------------------------------------------------------------ states

@@ -39,8 +39,11 @@ def cache_dir() -> Path:
 
 
 def compiler() -> str | None:
-    """The C compiler to use, or None."""
-    return os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+    """The C compiler to use (``$CC`` if it exists, else ``cc`` or ``gcc``), or None."""
+    cc = os.environ.get("CC")
+    if cc:
+        return shutil.which(cc)
+    return shutil.which("cc") or shutil.which("gcc")
 
 
 def compile_functions(prefix: str, functions: Sequence[ca.Function], *,
@@ -61,7 +64,11 @@ def compile_functions(prefix: str, functions: Sequence[ca.Function], *,
             return {f.name(): f for f in functions}
         raise ModelError("no C compiler found (set CC) to build the compiled plant")
     cache = cache_dir()
-    cache.mkdir(parents=True, exist_ok=True)
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+    except OSError:                         # read-only home: a per-user temporary folder
+        cache = Path(tempfile.gettempdir()) / f"granular_mpc-cache-{os.getuid()}"
+        cache.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         cg = ca.CodeGenerator("gen.c", {"with_header": False})
         for f in functions:

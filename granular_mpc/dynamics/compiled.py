@@ -17,22 +17,31 @@ on sand and rigid ground.
 
 Route (measured, issue 12): Pinocchio 4.1 from PyPI has no ``pinocchio.casadi``, so the
 rigid-body part is written directly over the Pinocchio model's tree in CasADi SX
-(:mod:`.rigid_body_sx`: ABA, O(n), ≈ 2,500 operations with external forces, no new
-dependency, and the very model the reference uses). A library such as adam-robotics builds
-M(q) and h(q, v) from the URDF; the plant would then need a symbolic 12×12 solve (and a
-second model parse), which is more operations than ABA for the same result. The compiled
-step is ≈ 9,700 operations on sand (rigid body ≈ 4,800, of which the Verlet
-``M⁻¹Δτ`` correction ≈ 1,800; the two feet's terrain law ≈ 4,900) — ≈ 21 µs per step on
-a loaded shared core against ≈ 530 µs for the reference there (measure with
-``bench/plant.py``).
+(:mod:`.rigid_body_sx`: ABA, O(n), ≈ 2,450 operations with external forces, 2.2 µs
+compiled; no new dependency, and the very model the reference uses, so the comparison
+test holds to ~1e-12). Measured alternatives on the same URDF (operation counts of the
+SX functions, without external forces): our ABA 2,411; adam-robotics 0.5's CasADi ABA
+3,409 (plus the conversions from its 4×4 base transform and mixed-velocity convention,
+and a second parse of the URDF); its M(q) 2,155 + h(q, v) 1,429 before the symbolic 12×12
+solve the plant would need. Numba would leave the terrain law (already CasADi) in a
+separate call and re-implement what CasADi generates.
 
-Not compiled (raise :class:`~granular_mpc.exceptions.ConfigError` or are ignored, see
-:meth:`CompiledPlant.step`): a callable ``base_wrench`` (a constant trunk wrench per call
-is supported) and joint effects that cannot be traced with CasADi.
+Profile of the compiled sand step (each piece compiled alone and timed through the buffer
+interface, shared 2-core machine under load ≈ 8): step 16.6 µs ≈ 8,900 operations after
+common-subexpression elimination — both feet's terrain law 10.1 µs (61 %: per foot the
+closed form's 80 sin, 74 cos, 166 divisions, 6 atan2, 4 acos), ABA 2.2 µs, the Verlet
+``M⁻¹Δτ`` correction 1.5 µs, foot kinematics 0.5 µs, integrate 0.4 µs; a Python call
+adds ≈ 1–2 µs, hence ``chunk`` steps per call. ``bench/plant.py`` measures it beside the
+reference (11–13× faster there under load; the reference's own profile is in that file).
+
+Without a C compiler the same functions run in CasADi's virtual machine (same results,
+several times slower). Not supported: a callable trunk wrench (a constant wrench per call
+is) and joint effects that cannot be traced with CasADi (:class:`ConfigError`).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import casadi as ca
@@ -136,10 +145,11 @@ class CompiledPlant:
         self.verlet = plant.sim.integrator == "verlet"
         self.theta = np.array(plant.terrain.param_values, dtype=float)
         step, start = builder.step_function(), builder.start_function()
-        #: the symbolic (uncompiled) functions, for other wrappers (e.g. an OpenMP map)
+        #: the symbolic (uncompiled) functions, for other wrappers
         self.symbolic = {"plant_step": step, "plant_start": start,
                          "plant_chunk": chunk_function(step, chunk)}
-        self.functions = compile_functions("plant", list(self.symbolic.values()))
+        # without a C compiler the same functions run in CasADi's virtual machine (slower)
+        self.functions = compile_functions("plant", list(self.symbolic.values()), fallback=True)
         self._step1 = _Caller(self.functions["plant_step"])
         self._stepk = _Caller(self.functions["plant_chunk"])
         self._start = _Caller(self.functions["plant_start"])
@@ -208,6 +218,9 @@ class CompiledPlant:
         """
         u = self.control(tau, q_ref=q_ref, kp=kp, kd=kd)
         th = self.theta if theta is None else np.asarray(theta, dtype=float)
+        if callable(wrench):
+            raise ConfigError("the compiled plant takes a constant trunk wrench per call, "
+                              "not a callable", key="wrench")
         w = np.zeros(6) if wrench is None else np.asarray(wrench, dtype=float)
         x = np.array(state.x)
         t, steps, aux = state.t, state.steps, state.aux
@@ -225,6 +238,37 @@ class CompiledPlant:
             self._check(t, x, aux)
         return CompiledState(t, steps, x, started, self.layout, aux)
 
+    # ------------------------------------------------------------------ in-place path
+    def new_data(self, q0: np.ndarray, v0: np.ndarray | None = None) -> "CompiledData":
+        """Mutable data at ``q0``, ``v0`` for :meth:`advance` (the lean per-step path)."""
+        return CompiledData(self, self.initial_state(q0, v0))
+
+    def data_from_state(self, state: CompiledState) -> "CompiledData":
+        """Mutable data holding ``state`` (a copy)."""
+        return CompiledData(self, state)
+
+    def advance(self, d: "CompiledData", n_steps: int = 1) -> None:
+        """Advance ``d`` in place by ``n_steps`` with its held command (``d.tau``, ``d.q_ref``,
+        ``d.kp``, ``d.kd``, ``d.wrench``, ``d.theta``); same physics as :meth:`step`,
+        without allocating (a Python controller's per-step path).
+
+        Raises:
+            PlantDivergedError: as :meth:`step`.
+        """
+        if self.verlet and not d.started and n_steps > 0:
+            d.call_start()
+        if n_steps > 0:
+            d.started = True
+        left = int(n_steps)
+        while left > 0:
+            k = self.chunk if left >= self.chunk else 1
+            d.call(k > 1)
+            left -= k
+            d.t += k * self.dt
+            d.steps += k
+            if not (d.aux[-1] < self.plant.sim.max_speed) or not math.isfinite(d.x.sum()):
+                self._check(d.t, d.x, d.aux)
+
     def _check(self, t: float, x: np.ndarray, aux: np.ndarray) -> None:
         L, sim = self.layout, self.plant.sim
         if not (aux[-1] < sim.max_speed) or not np.isfinite(x).all():
@@ -232,6 +276,54 @@ class CompiledPlant:
             reason = "non-finite" if not np.isfinite(x).all() else "velocity-bound"
             raise PlantDivergedError(t, q, v, reason, q_names=self.plant.biped.q_names,
                                      v_names=self.plant.biped.v_names)
+
+
+class CompiledData:
+    """Changing part of one robot for :meth:`CompiledPlant.advance` (like ``PlantData``).
+
+    Attributes:
+        t [s], steps, started: as :class:`CompiledState`.
+        x: the flat state (views ``q``, ``v``); aux: last call's auxiliary output.
+        u: the held control, with views ``tau`` (feed-forward [N·m]), ``q_ref`` [rad],
+            ``kp`` [N·m/rad], ``kd`` [N·m·s/rad] — write into them (``d.tau[:] = …``).
+        theta: terrain parameters; wrench: trunk wrench in W (f [N], m [N·m]).
+    """
+
+    def __init__(self, fast: CompiledPlant, state: CompiledState) -> None:
+        L = fast.layout
+        self.layout = L
+        self.t, self.steps, self.started = state.t, state.steps, state.started
+        self.x = np.array(state.x)
+        self.aux = np.array(state.aux)
+        self.u = np.zeros(L.nu)
+        self.theta = fast.theta.copy()
+        self.wrench = np.zeros(6)
+        self.q, self.v = self.x[L.q], self.x[L.v]
+        na = L.na
+        self.tau, self.q_ref, self.kp, self.kd = (self.u[k * na:(k + 1) * na] for k in range(4))
+        self._x_out = np.zeros(L.nx)
+        self._calls = {}
+        for key, name in ((False, "plant_step"), (True, "plant_chunk"), ("start", "plant_start")):
+            buf, call = fast.functions[name].buffer()
+            for i, a in enumerate((self.x, self.u, self.theta, self.wrench)):
+                buf.set_arg(i, memoryview(a))
+            buf.set_res(0, memoryview(self._x_out))
+            if name != "plant_start":
+                buf.set_res(1, memoryview(self.aux))
+            self._calls[key] = (buf, call)
+
+    def call(self, chunk: bool) -> None:
+        """One compiled call (``chunk`` steps or one), result copied into ``x``."""
+        self._calls[chunk][1]()
+        self.x[:] = self._x_out
+
+    def call_start(self) -> None:
+        self._calls["start"][1]()
+        self.x[:] = self._x_out
+
+    def state(self) -> CompiledState:
+        """An immutable snapshot."""
+        return CompiledState(self.t, self.steps, self.x, self.started, self.layout, self.aux)
 
 
 def chunk_function(step: ca.Function, k: int) -> ca.Function:
@@ -268,4 +360,4 @@ class _Caller:
         return [o.copy() for o in self.outs]
 
 
-__all__ = ["CompiledPlant", "CompiledState", "DEFAULT_CHUNK", "chunk_function"]
+__all__ = ["CompiledPlant", "CompiledState", "CompiledData", "DEFAULT_CHUNK", "chunk_function"]

@@ -17,6 +17,9 @@ Integrators (``sim.integrator``):
 
 Both integrate the configuration on its manifold (``pinocchio.integrate``). Joints have
 end stops: beyond the URDF position limits a stiff spring–damper pushes back.
+
+Actuators (``sim.actuators``, :mod:`.actuators`): ideal by default. Optional joint friction
+and motor model (reflected rotor inertia, torque–speed envelope), unknown to the controller.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from ..robot.model import SIDES, Biped
 from ..rotations import matrix_from_quat_xyzw
 from ..terrain.base import TerrainModel
 from ..terrain.contact import ContactData
+from .actuators import ActuatorModel, joint_range_samples
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _ZERO_FORCE = pin.Force.Zero()
@@ -48,6 +52,9 @@ class Plant:
             to the actuator torques in :meth:`forward`, at the state being evaluated (e.g.
             ``granular_mpc.effects.joint_friction``). The held command
             ``d.tau`` (what a motor-current torque sensor reports) is not changed.
+        actuators: the joint-loss and motor model of ``sim.actuators`` (derived).
+        model: the Pinocchio model the plant integrates (derived): the robot's, or a copy
+            with the reflected rotor inertia as ``armature`` when the motor model adds it.
     """
 
     biped: Biped
@@ -59,6 +66,28 @@ class Plant:
         if self.terrain.foot != self.biped.config.foot:
             raise ConfigError("the terrain model was built for another foot geometry",
                               key="terrain", allowed="build_terrain(config, biped.config)")
+        if self.actuators.active:              # sim.actuators: integrable at this dt?
+            samples = joint_range_samples(self.biped.standing_configuration(), self._iq,
+                                          self._q_lo, self._q_hi)
+            self.actuators.check_step(self.model, samples, self._iv, self.sim.dt)
+
+    @property
+    def actuators(self) -> ActuatorModel:
+        """Joint losses and motor model (``sim.actuators``), cached."""
+        cache = self.__dict__.get("_actuators_cache")
+        if cache is None:
+            cache = ActuatorModel.from_config(self.sim.actuators, self.biped.torque_limits)
+            object.__setattr__(self, "_actuators_cache", cache)
+        return cache
+
+    @property
+    def model(self) -> pin.Model:
+        """The Pinocchio model integrated: ``biped.model``, plus armature N² J_r if on."""
+        cache = self.__dict__.get("_model_cache")
+        if cache is None:
+            cache = self.actuators.dynamics_model(self.biped.model, self._iv)
+            object.__setattr__(self, "_model_cache", cache)
+        return cache
 
     @property
     def dt(self) -> float:
@@ -88,7 +117,7 @@ class Plant:
         ``base_wrench`` always see ``v``. The Verlet step passes its predicted end-of-step
         velocity there (see :meth:`step`).
         """
-        model, pdata, contact = self.biped.model, d.pin, d.contact
+        model, pdata, contact = self.model, d.pin, d.contact
         pin.forwardKinematics(model, pdata, q, v)
         for i, (fid, jid, to_joint) in enumerate(self._feet):
             oMf = pin.updateFramePlacement(model, pdata, fid)
@@ -121,6 +150,9 @@ class Plant:
             tau = tau.copy()
             for fn in self.joint_effects:
                 tau[self._iv] += fn(qa, va)
+        if self.actuators.active:              # joint losses, motor model (sim.actuators)
+            tau = tau.copy()
+            tau[self._iv] += self._actuator_torque(d, v[self._iv])
         w = d.base_wrench
         if w is None:
             d.fext[1] = _ZERO_FORCE
@@ -135,6 +167,27 @@ class Plant:
     #: joint end-stop stiffness [N·m/rad] and damping [N·m·s/rad]
     STOP_K = 500.0
     STOP_D = 5.0
+
+    def _actuator_torque(self, d: "PlantData", dq_a: np.ndarray) -> np.ndarray:
+        """(τ_m − τ_cmd) + τ_f [N·m] at joint rates ``dq_a``: what the actuator model adds to
+        the held command; records τ_m, τ_f and ``dq_a`` in ``d``."""
+        act = self.actuators
+        tau_cmd = d.tau[self._iv]
+        d._tau_motor = act.motor_torque(tau_cmd, dq_a)
+        d._tau_friction = act.friction_torque(dq_a)
+        d._dq_eval = dq_a.copy()
+        return (d._tau_motor - tau_cmd) + d._tau_friction
+
+    def _torque_change(self, d: "PlantData") -> np.ndarray:
+        """Δτ since ``d.a`` was evaluated [N·m] (full size), for Verlet's ``M⁻¹Δτ``: the
+        command's change, or — when the torque–speed envelope clips — the delivered
+        torque's change at the joint rates ``d.a`` was evaluated at (then recorded)."""
+        dtau = d.tau - d.tau_prev
+        if self.actuators.limits_torque and d._dq_eval is not None:
+            tau_m = self.actuators.motor_torque(d.tau[self._iv], d._dq_eval)
+            dtau[self._iv] = tau_m - d._tau_motor
+            d._tau_motor = tau_m
+        return dtau
 
     @property
     def _joint_damping(self) -> float:
@@ -184,8 +237,8 @@ class Plant:
                 d.contact.commit()
             elif d.tau_changed:
                 # acceleration is affine in τ: correct the reused one exactly
-                minv = pin.computeMinverse(self.biped.model, d.pin, d.q)
-                d.a = d.a + minv @ (d.tau - d.tau_prev)
+                minv = pin.computeMinverse(self.model, d.pin, d.q)
+                d.a = d.a + minv @ self._torque_change(d)
             d.tau_changed = False
             v_half = d.v + 0.5 * dt * d.a
             q_new = pin.integrate(self.biped.model, d.q, v_half * dt)
@@ -222,8 +275,9 @@ class Plant:
 
     # ------------------------------------------------------------------ energy
     def energy(self, d: "PlantData") -> tuple[float, float]:
-        """(kinetic, potential) energy [J], potential relative to z = 0."""
-        model = self.biped.model
+        """(kinetic, potential) energy [J], potential relative to z = 0 (kinetic includes
+        the rotors' N² J_r q̇² / 2 when the motor model adds reflected inertia)."""
+        model = self.model
         ke = pin.computeKineticEnergy(model, d.pin, d.q, d.v)
         pe = pin.computePotentialEnergy(model, d.pin, d.q)
         return float(ke), float(pe)
@@ -252,6 +306,11 @@ class PlantData:
         #: or a callable (q, v) -> that 6-vector (e.g. a test rig), evaluated every step
         self.base_wrench = None
         self._idx_v = plant.biped.idx_v
+        # actuator model (sim.actuators), at the last dynamics evaluation: motor torque,
+        # friction torque [N·m] and the joint rates they were evaluated at [rad/s]
+        self._tau_motor: np.ndarray | None = None
+        self._tau_friction: np.ndarray | None = None
+        self._dq_eval: np.ndarray | None = None
 
     def set_torque(self, tau_a: np.ndarray) -> None:
         """Hold actuator torques ``tau_a`` [N·m] (actuator order) from now on."""
@@ -265,6 +324,28 @@ class PlantData:
         return self.tau[self._idx_v].copy()
 
     # ------------------------------------------------------------------ read-outs
+    @property
+    def tau_motor(self) -> np.ndarray:
+        """Joint torque the motors deliver [N·m], actuator order: the command clipped to the
+        torque–speed envelope at the last dynamics evaluation (the command if ideal)."""
+        if self._tau_motor is None or not self.plant.actuators.limits_torque:
+            return self.tau_a
+        return self._tau_motor.copy()
+
+    @property
+    def tau_friction(self) -> np.ndarray:
+        """Joint friction torque at the last dynamics evaluation [N·m] (zeros if off)."""
+        if self._tau_friction is None or not self.plant.actuators.friction:
+            return np.zeros(len(self._idx_v))
+        return self._tau_friction.copy()
+
+    @property
+    def electrical_power(self) -> np.ndarray:
+        """Electrical power per motor now [W], P = τ_m q̇ + R_w (τ_m/(k_t N))² with
+        :attr:`tau_motor` and the current joint rates (``sim.actuators.motor`` constants,
+        used even when the motor model is off). Negative: regenerating."""
+        return self.plant.actuators.electrical_power(self.tau_motor, self.v[self._idx_v])
+
     def foot_force(self, foot: int) -> np.ndarray:
         """Total terrain force on foot ``foot`` (0 left, 1 right) in W [N]."""
         return self.contact.feet[foot].force.sum(axis=0)

@@ -267,6 +267,8 @@ class StepBuilder:
             q_new = rb.integrate(self.tree, q, v_new * dt)
         x_next = ca.vertcat(q_new, v_new, a_new, tau_a, new_states)
         aux_out = ca.vertcat(*aux, ca.mmax(ca.fabs(v_new)))
+        # merge identical subexpressions (exact: the same operations, computed once)
+        x_next, aux_out = ca.cse([x_next, aux_out])
         return ca.Function("plant_step", [x, u, theta, wrench], [x_next, aux_out],
                            ["x", "u", "theta", "wrench"], ["x_next", "aux"])
 
@@ -277,7 +279,7 @@ class StepBuilder:
         q, v, states = x[L.q], x[L.v], x[L.contact]
         tau_a, tau_full = self._torque(q, v, u)
         a, new_states, _ = self.forward(q, v, v, tau_full, states, theta, wrench)
-        x_next = ca.vertcat(q, v, a, tau_a, new_states)
+        x_next = ca.cse(ca.vertcat(q, v, a, tau_a, new_states))
         return ca.Function("plant_start", [x, u, theta, wrench], [x_next],
                            ["x", "u", "theta", "wrench"], ["x_next"])
 

@@ -31,13 +31,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..analysis.cot import estimate_weight_from_grf, stance_cumulative_cot
+from ..analysis.attitude import trunk_rpy
+from ..analysis.cot import (DEFAULT_COT_READING, estimate_weight_from_grf, reading_mode,
+                            stance_cumulative_cot)
 from ..analysis.metrics import (ID_COL, PHASE_COL, leg_joint_roles, phase_bands,
-                                resample_by_phase, resample_stances, segment_stances)
+                                resample_by_phase, resample_stances, contact_segments)
 from ..analysis.rolling import DEFAULT_MIN_RATE, rolling_from_log
-from ..columns import (BASE_POSITION, BASE_QUATERNION, COM_POSITION, COM_VELOCITY,
+from ..columns import (BASE_POSITION, COM_POSITION, COM_VELOCITY,
                        FOOT_CONTACT, FOOT_POINT, FOOT_SIDES, TIME, foot_column)
-from ..rotations import rpy_rows_from_quat_wxyz
 from .figures import DPI, PALETTE, PHASE_LABEL, PlotOutput, draw_band, new_figure, save_figure
 from .validation_plots import (plot_model_vs_measurement, plot_residual_heatmap,
                                plot_rmse_vs_speed)
@@ -58,9 +59,9 @@ def _band_panel(ax, bands: pd.DataFrame, channel: str, *, color, label, center="
 
 
 def _segments_or_raise(log: pd.DataFrame, segments: pd.DataFrame | None) -> pd.DataFrame:
-    segs = segment_stances(log) if segments is None else segments
+    segs = contact_segments(log) if segments is None else segments
     if len(segs) == 0:
-        raise ValueError("no complete stance segment in the log (see segment_stances)")
+        raise ValueError("no complete stance segment in the log (see granular_mpc.analysis.contact_segments)")
     return segs
 
 
@@ -163,7 +164,8 @@ def plot_intrusion_bands(log: pd.DataFrame, out_path: str | Path | None = None, 
 def plot_rolling_cot(log: pd.DataFrame, out_path: str | Path | None = None, *,
                      weight: float | None = None, biped=None,
                      segments: pd.DataFrame | None = None, n_phase: int = 101,
-                     min_rate: float = DEFAULT_MIN_RATE, cot_mode: str = "abs",
+                     min_rate: float = DEFAULT_MIN_RATE,
+                     cot_mode: str = reading_mode(DEFAULT_COT_READING),
                      cot_normalise: str = "running") -> PlotOutput:
     """Rolling angle Δθ_r, effective rolling radius and cumulative CoT over the stance
     (paper Fig. 6a–c).
@@ -225,19 +227,6 @@ def plot_rolling_cot(log: pd.DataFrame, out_path: str | Path | None = None, *,
 
 
 # --------------------------------------------------------------------------- trajectories
-def trunk_rpy(log: pd.DataFrame) -> np.ndarray:
-    """Trunk roll, pitch, yaw [rad] per row, R_W_B = Rz(yaw) Ry(pitch) Rx(roll).
-
-    The one place that turns a log's trunk quaternions into attitude angles: use it
-    rather than converting them again. From the columns ``base_qw, base_qx, base_qy,
-    base_qz`` (:data:`~granular_mpc.columns.BASE_QUATERNION`), each row scaled to unit
-    norm first (:func:`~granular_mpc.rotations.rpy_rows_from_quat_wxyz`); shape (n, 3).
-    """
-    quat = log[list(BASE_QUATERNION)].to_numpy(dtype=float)
-    quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
-    return rpy_rows_from_quat_wxyz(quat)
-
-
 def plot_trajectories(log: pd.DataFrame, out_path: str | Path | None = None) -> PlotOutput:
     """Trunk and CoM paths: side view (x–z), top view (x–y), trunk roll/pitch/yaw and
     forward CoM speed against time.
@@ -418,7 +407,7 @@ def make_run_plots(log_df: pd.DataFrame, out_dir: str | Path, biped=None, *,
             estimated from the log (stated in the figure).
     """
     out = Path(out_dir)
-    segs = segment_stances(log_df)
+    segs = contact_segments(log_df)
     paths = []
     stance_figs = (("joints.png", "Joint angles", lambda p: plot_joint_bands(log_df, p, segments=segs)),
                    ("grf.png", "Ground reaction force", lambda p: plot_grf_bands(log_df, p, segments=segs)),

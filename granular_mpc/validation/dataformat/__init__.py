@@ -16,6 +16,11 @@ z up; see ``docs/notation.md``)::
     intrusion_x, intrusion_y, intrusion_z  stance-foot contact point minus its touchdown point [m],
                                            z positive = deeper
 
+``meta.yaml`` may declare which **channel groups** were measured (``channels:``, see
+:mod:`.channels`); the columns of the other groups are then absent, and a missing
+``stance`` column is derived from foot force or leg kinematics (:mod:`.stance_derive`;
+``Dataset.stance_source`` says how). Without ``channels`` every column above is required.
+
 Extra columns are kept and ignored. :func:`load_dataset` checks the meta file, every
 trial file and every value, and reports **all** problems at once in one
 :class:`~granular_mpc.exceptions.DataFormatError` whose ``problems`` each name the file,
@@ -27,23 +32,27 @@ runs of rows (``"rows 12–40, 57 (30 rows)"``). Nothing is dropped, repaired or
 Public API: :class:`DatasetMeta` (+ :class:`TrialMeta`, :class:`GeneratorMeta`),
 :class:`FormatTolerances`, :class:`Dataset`, :func:`load_dataset`, :func:`check_dataset`,
 :func:`check_trials`, :func:`write_dataset`, :func:`stance_phases` /
-:class:`StancePhase`, :func:`format_columns`.
+:class:`StancePhase`, :func:`format_columns`, :class:`ChannelGroup` / :class:`ChannelSet`,
+:class:`StanceDerivation` / :func:`derive_stance`.
 
 Modules, one job each: :mod:`.meta` (the ``meta.yaml`` schema), :mod:`.tolerances`,
 :mod:`.dataset` (the loaded data set, stance phases), :mod:`.readers` (one CSV/Parquet
 file), :mod:`.load` (a data set folder), :mod:`.write` (writing, and checking in-memory
 trials), :mod:`.checks` (every check of one trial, each in a ``checks_<what>.py``) with
 :mod:`.trial_check` (their working state and wording), :mod:`.robot_facts` (joint limits
-and weight from the URDF) and :mod:`.checks_meta`. The column names are
+and weight from the URDF) and :mod:`.checks_meta`, :mod:`.channels` (channel groups) and :mod:`.stance_derive`
+(stance labels of unlabelled trials). The column names are
 :mod:`granular_mpc.columns`'s, re-exported here.
 """
 
 from ...columns import (BASE_ANGULAR_VELOCITY, BASE_COLUMNS, BASE_LINEAR_VELOCITY, BASE_POSITION,
                         BASE_QUATERNION, GRF_COLUMNS, INTRUSION_COLUMNS, JOINT_PREFIXES, META_FILE,
                         STANCE_LABELS, format_columns, joint_columns)
+from .channels import ChannelGroup, ChannelSet, group_of_column
 from .dataset import Dataset, StancePhase, stance_phases
 from .load import check_dataset, load_dataset
 from .meta import SCHEMA_VERSION, SUFFIXES, DatasetMeta, GeneratorMeta, TrialMeta, TrialName
+from .stance_derive import StanceDerivation, StanceSource, derive_stance
 from .tolerances import FormatTolerances
 from .write import check_trials, write_dataset
 
@@ -52,6 +61,8 @@ __all__ = [
     "INTRUSION_COLUMNS", "TrialMeta", "GeneratorMeta", "DatasetMeta", "FormatTolerances",
     "Dataset", "StancePhase", "stance_phases", "format_columns", "joint_columns",
     "load_dataset", "check_dataset", "check_trials", "write_dataset",
+    "ChannelGroup", "ChannelSet", "group_of_column", "StanceDerivation", "StanceSource",
+    "derive_stance",
     # also importable from here, as before the split
     "SUFFIXES", "TrialName", "JOINT_PREFIXES", "BASE_POSITION", "BASE_QUATERNION",
     "BASE_LINEAR_VELOCITY", "BASE_ANGULAR_VELOCITY",

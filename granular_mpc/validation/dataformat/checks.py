@@ -9,25 +9,43 @@ from here.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pandas as pd
 
-from ...columns import STANCE
+from ...columns import FOOT_SIDES, STANCE, foot_column
 from ...exceptions import DataProblem
+from .channels import ChannelSet
 from .checks_columns import check_header, numeric_values, stance_problems
 from .checks_contact import check_contact
 from .checks_joints import check_joints
 from .checks_time import check_time
 from .checks_trunk import check_base, check_orientation
 from .robot_facts import RobotFacts
+from .stance_derive import StanceDerivation, derive_stance
 from .tolerances import FormatTolerances
 from .trial_check import TrialCheck
 
 
+@dataclass(frozen=True)
+class CheckedTrial:
+    """One trial that passed every check.
+
+    Attributes:
+        frame: a copy with the format columns as float64 and ``stance`` as text.
+        stance: how the ``stance`` labels were derived, or None if the file has them.
+    """
+
+    frame: pd.DataFrame
+    stance: StanceDerivation | None = None
+
+
 def check_frame(df: pd.DataFrame, rows: np.ndarray, *, file: str, strict_types: bool,
                 facts: RobotFacts | None, fs: float | None, speed: float | None,
-                tol: FormatTolerances, problems: list[DataProblem]) -> pd.DataFrame | None:
-    """Run every check on one trial; return the normalised frame, or None if it has problems.
+                tol: FormatTolerances, problems: list[DataProblem],
+                channels: ChannelSet | None = None) -> CheckedTrial | None:
+    """Run every check on one trial; return the checked trial, or None if it has problems.
 
     Args:
         df: the trial as read (not modified).
@@ -39,12 +57,15 @@ def check_frame(df: pd.DataFrame, rows: np.ndarray, *, file: str, strict_types: 
         speed: commanded speed [m/s] (None: unknown).
         tol: thresholds.
         problems: where the problems found are appended.
+        channels: the measured groups (default: all, undeclared). With declared
+            channels a missing ``stance`` column is derived (:mod:`.stance_derive`).
 
     Returns:
-        A copy with the format columns as float64 and ``stance`` as text, or None.
+        The checked trial, or None.
     """
+    channels = channels or ChannelSet.all()
     t = TrialCheck(file, df, np.asarray(rows, dtype=np.int64), strict_types)
-    required = check_header(t, facts)
+    required = check_header(t, facts, channels)
     if len(df) < 2:
         t.add(f"has {len(df)} data row(s); a trial needs at least 2")
     present = [c for c in required if c in df.columns and c != STANCE]
@@ -52,6 +73,7 @@ def check_frame(df: pd.DataFrame, rows: np.ndarray, *, file: str, strict_types: 
         for col in present:
             numeric_values(t, col)
     labels = None
+    derived: tuple[np.ndarray, StanceDerivation] | None = None
     if STANCE in df.columns and len(df):
         raw = df[STANCE].astype(object).to_numpy()
         label_problems = stance_problems(raw, t.rows, file)
@@ -64,7 +86,9 @@ def check_frame(df: pd.DataFrame, rows: np.ndarray, *, file: str, strict_types: 
         if facts is not None:
             check_joints(t, facts, time_ok, tol)
         check_base(t, time_ok, quat_ok, tol)
-        check_contact(t, labels, facts, speed, time_ok, tol)
+        if STANCE not in df.columns and channels.declared and not t.problems:
+            derived = _derive(t, facts, channels)
+        check_contact(t, labels if derived is None else derived[0], facts, speed, time_ok, tol)
     problems += t.problems
     if t.problems:
         return None
@@ -72,8 +96,27 @@ def check_frame(df: pd.DataFrame, rows: np.ndarray, *, file: str, strict_types: 
     for col in present:
         if out[col].dtype != np.float64:
             out[col] = t.values[col]
-    out[STANCE] = out[STANCE].astype(str)
-    return out
+    if derived is None:
+        out[STANCE] = out[STANCE].astype(str)
+        return CheckedTrial(out)
+    out.insert(min(1, len(out.columns)), STANCE, derived[0].astype(str))
+    return CheckedTrial(out, derived[1])
 
 
-__all__ = ["check_frame"]
+def _derive(t: TrialCheck, facts: RobotFacts | None,
+            channels: ChannelSet) -> tuple[np.ndarray, StanceDerivation] | None:
+    """Derived stance labels of a trial without a ``stance`` column (problems added to t)."""
+    per_foot = [foot_column(s, "grf_z") for s in FOOT_SIDES]
+    if all(c in t.df.columns for c in per_foot):
+        for col in per_foot:
+            numeric_values(t, col)
+        if t.problems:
+            return None
+    found = derive_stance(t.values, facts, channels)
+    if isinstance(found, str):
+        t.add(f"the stance column is missing and cannot be derived: {found}", STANCE)
+        return None
+    return found
+
+
+__all__ = ["CheckedTrial", "check_frame"]

@@ -9,7 +9,8 @@ from typing import Iterable
 import numpy as np
 import pandas as pd
 
-from ...columns import JOINT_PREFIXES, STANCE, STANCE_LABELS, format_columns
+from ...columns import JOINT_PREFIXES, META_FILE, STANCE, STANCE_LABELS, TIME, format_columns
+from .channels import ChannelGroup, ChannelSet
 from ...exceptions import DataProblem
 from .robot_facts import RobotFacts
 from .trial_check import TrialCheck, rows_phrase
@@ -30,8 +31,17 @@ def close_hint(name: str, candidates: Iterable[str]) -> str:
     return f"; did you mean {match[0]!r}?" if match else ""
 
 
-def check_header(t: TrialCheck, facts: RobotFacts | None) -> list[str]:
-    """Column names: non-text or empty names, missing format columns, unknown joints.
+def check_header(t: TrialCheck, facts: RobotFacts | None,
+                 channels: ChannelSet | None = None) -> list[str]:
+    """Column names: non-text or empty names, missing format columns, unknown joints, and
+    columns of channel groups that ``meta.yaml`` does not declare.
+
+    Args:
+        t: the trial's working state (problems are added to it).
+        facts: the robot (None: unknown, joint columns not required).
+        channels: the measured groups (None or undeclared: every format column is
+            required, ``stance`` included; declared: ``time`` and the declared groups'
+            columns, ``stance`` optional, undeclared groups' columns forbidden).
 
     Returns:
         The format columns required of this trial (without the joint columns when the
@@ -45,12 +55,16 @@ def check_header(t: TrialCheck, facts: RobotFacts | None) -> list[str]:
             t.add(f"column {i + 1} has an empty name (a trailing comma in the header?)", c)
     names = [c for c in cols if isinstance(c, str)]
     joints = facts.joints if facts is not None else ()
-    required = format_columns(joints)
     present = set(names)
-    for col in required:
-        if col not in present:
-            t.add(f"required column is missing{close_hint(col, [c for c in names if c not in required])}",
-                  col)
+    if channels is None or not channels.declared:
+        required = format_columns(joints)
+        for col in required:
+            if col not in present:
+                t.add(f"required column is missing"
+                      f"{close_hint(col, [c for c in names if c not in required])}", col)
+    else:
+        required = [TIME] + channels.columns(joints)
+        _declared_groups(t, channels, joints, names, required)
     if facts is not None:
         for col in names:
             for prefix in JOINT_PREFIXES:
@@ -62,6 +76,33 @@ def check_header(t: TrialCheck, facts: RobotFacts | None) -> list[str]:
                               col)
                     break
     return required
+
+
+def _declared_groups(t: TrialCheck, channels: ChannelSet, joints: tuple[str, ...],
+                     names: list[str], required: list[str]) -> None:
+    """Declared groups must be complete, undeclared ones absent (``meta.yaml`` channels)."""
+    present = set(names)
+    if TIME not in present:
+        t.add(f"required column is missing{close_hint(TIME, names)}", TIME)
+    for group in ChannelGroup:
+        cols = group.columns(joints)
+        have = [c for c in cols if c in present]
+        if group in channels:
+            if not have and cols:
+                t.add(f"channel group '{group.value}' is declared in {META_FILE} channels but "
+                      f"the file has none of its columns ({', '.join(cols)}): remove it from "
+                      "channels or add the columns", ",".join(cols))
+                continue
+            for col in cols:
+                if col not in present:
+                    t.add(f"required column of the declared channel group '{group.value}' "
+                          f"({META_FILE} channels) is missing"
+                          f"{close_hint(col, [c for c in names if c not in required])}", col)
+        elif have:
+            t.add(f"channel group '{group.value}' is not declared in {META_FILE} channels but "
+                  f"the file has its column(s) {', '.join(have)}: add '{group.value}' to "
+                  "channels, or remove the columns (a channel that was not measured is absent, "
+                  "never zero-filled)", ",".join(have))
 
 
 def numeric_values(t: TrialCheck, col: str) -> None:

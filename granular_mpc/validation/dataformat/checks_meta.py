@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import difflib
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from pydantic import ValidationError
@@ -16,6 +16,7 @@ from pydantic import ValidationError
 from ...columns import META_FILE
 from ...config import format_location, model_fields_at
 from ...exceptions import DataProblem
+from .channels import ChannelSet
 from .meta import SCHEMA_VERSION, DatasetMeta, file_name_error, shared_files
 from .tolerances import FormatTolerances
 
@@ -29,12 +30,23 @@ class MetaView:
         robot: robot name, if one could be read.
         sample_rate_hz: nominal sample rate [Hz], if a valid one could be read.
         trials: (name, file, commanded speed [m/s] or None) of every readable trial entry.
+        channels: the declared channel groups (all, undeclared, when ``channels`` is
+            absent or unreadable).
     """
 
     meta: DatasetMeta | None
     robot: str | None
     sample_rate_hz: float | None
     trials: list[tuple[str, str, float | None]]
+    channels: ChannelSet = field(default_factory=ChannelSet.all)
+
+
+def _salvage_channels(raw: Any) -> ChannelSet:
+    """The ``channels`` list of an invalid meta, if it is readable on its own."""
+    try:
+        return ChannelSet.of(raw) if isinstance(raw, list) and raw else ChannelSet.all()
+    except (TypeError, ValueError):
+        return ChannelSet.all()
 
 
 def pydantic_problems(exc: ValidationError, file: str) -> list[DataProblem]:
@@ -100,7 +112,8 @@ def check_meta(raw: dict[str, Any], tol: FormatTolerances,
         meta = None
     if meta is not None:
         view = MetaView(meta, meta.robot, meta.sample_rate_hz,
-                        [(n, t.file, t.commanded_speed_mps) for n, t in meta.trials.items()])
+                        [(n, t.file, t.commanded_speed_mps) for n, t in meta.trials.items()],
+                        ChannelSet.of(meta.channels))
     else:
         robot = raw.get("robot") if isinstance(raw.get("robot"), str) and raw["robot"] else None
         rate = _finite_number(raw.get("sample_rate_hz"))
@@ -112,7 +125,8 @@ def check_meta(raw: dict[str, Any], tol: FormatTolerances,
                         and not file_name_error(entry["file"]):
                     trials.append((str(name), entry["file"],
                                    _finite_number(entry.get("commanded_speed_mps"))))
-        view = MetaView(None, robot, rate if rate and rate > 0 else None, trials)
+        view = MetaView(None, robot, rate if rate and rate > 0 else None, trials,
+                        _salvage_channels(raw.get("channels")))
         reported = " ".join(p.message for p in problems)
         for text in shared_files((n, f) for n, f, _ in trials):
             if text not in reported:

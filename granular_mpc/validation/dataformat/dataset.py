@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from types import MappingProxyType
 from typing import Iterable, Literal, Mapping, NamedTuple
 
 import numpy as np
@@ -11,8 +12,10 @@ import pandas as pd
 
 from ...columns import STANCE, STANCE_LABELS, JointKind, joint_columns
 from ...exceptions import DataFormatError, DataProblem
+from .channels import ChannelGroup, ChannelSet
 from .checks_columns import stance_problems
 from .meta import DatasetMeta
+from .stance_derive import StanceDerivation, StanceSource
 from .write import write_dataset
 
 
@@ -98,12 +101,37 @@ class Dataset:
         meta: the validated ``meta.yaml``.
         trials: trial name → DataFrame, in ``meta.yaml`` order (read-only mapping).
         joint_names: actuated joints of ``meta.robot``, actuator order.
+        channels: the measured channel groups (``meta.yaml`` ``channels``; all of them,
+            undeclared, when the key is absent). Columns of other groups are absent.
+        stance_source: ``"measured"`` (the files have ``stance``), ``"force"`` or
+            ``"kinematics"`` (derived by the loader, :mod:`.stance_derive`).
+        stance_derivations: trial → how its labels were derived (empty when measured).
     """
 
     path: Path
     meta: DatasetMeta
     trials: Mapping[str, pd.DataFrame]
     joint_names: tuple[str, ...]
+    channels: ChannelSet = field(default_factory=ChannelSet.all)
+    stance_source: StanceSource = "measured"
+    stance_derivations: Mapping[str, StanceDerivation] = field(
+        default_factory=lambda: MappingProxyType({}))
+
+    def has(self, *groups: ChannelGroup | str) -> bool:
+        """True if every one of the channel ``groups`` was measured."""
+        return self.channels.has(*groups)
+
+    def channel_report(self) -> str:
+        """Measured and absent channel groups and the stance source, a few lines of text."""
+        lines = [f"data set {self.path.name}: {len(self.trials)} trial(s), robot "
+                 f"{self.meta.robot}, {self.meta.sample_rate_hz:g} Hz",
+                 f"  measured: {self.channels}"
+                 + ("" if self.channels.declared else " (no channels key: all groups)"),
+                 f"  absent:   {', '.join(g.value for g in self.channels.missing) or '(none)'}",
+                 f"  stance:   {self.stance_source}"]
+        for name, d in self.stance_derivations.items():
+            lines.append(f"    {name}: {d}")
+        return "\n".join(lines)
 
     @property
     def trial_names(self) -> tuple[str, ...]:
@@ -150,8 +178,13 @@ class Dataset:
 
     def write(self, path: str | Path, format: Literal["csv", "parquet"] = "csv", *,
               overwrite: bool = False) -> Path:
-        """Write this data set to another folder (e.g. CSV → Parquet); see :func:`write_dataset`."""
-        return write_dataset(path, self.meta, self.trials, format, overwrite=overwrite)
+        """Write this data set to another folder (e.g. CSV → Parquet); see :func:`write_dataset`.
+
+        Derived stance labels are not written (the copy derives them again on loading).
+        """
+        trials = ({n: df.drop(columns=[STANCE]) if n in self.stance_derivations else df
+                   for n, df in self.trials.items()} if self.stance_derivations else self.trials)
+        return write_dataset(path, self.meta, trials, format, overwrite=overwrite)
 
 
 __all__ = ["StancePhase", "stance_phases", "Dataset"]

@@ -16,6 +16,7 @@ from .checks_meta import check_meta
 from .dataset import Dataset
 from .meta import SUFFIXES
 from .readers import read_trial_file
+from .stance_derive import StanceDerivation, StanceSource
 from .robot_facts import load_robot_facts
 from .tolerances import FormatTolerances
 
@@ -76,6 +77,7 @@ def _load(path: str | Path,
             problems.append(DataProblem(p.name, "trial file is not listed under trials in "
                                         f"{META_FILE} (list it, or move it out of the folder)"))
     frames: dict[str, pd.DataFrame] = {}
+    derivations: dict[str, StanceDerivation] = {}
     for name, file, speed in view.trials:
         p = folder / file
         if not p.is_file():
@@ -88,13 +90,38 @@ def _load(path: str | Path,
             continue
         out = check_frame(df, rows, file=file, strict_types=strict_types,
                           facts=facts, fs=view.sample_rate_hz, speed=speed, tol=tol,
-                          problems=problems)
+                          problems=problems, channels=view.channels)
         if out is not None and not read_problems:
-            frames[name] = out
+            frames[name] = out.frame
+            if out.stance is not None:
+                derivations[name] = out.stance
+    source = _stance_source(view.trials, frames, derivations, problems)
     if problems or view.meta is None or facts is None:
         return None, problems, folder
     return Dataset(path=folder.resolve(), meta=view.meta, trials=MappingProxyType(frames),
-                   joint_names=facts.joints), problems, folder
+                   joint_names=facts.joints, channels=view.channels, stance_source=source,
+                   stance_derivations=MappingProxyType(derivations)), problems, folder
+
+
+def _stance_source(trials: list[tuple[str, str, float | None]], frames: dict[str, pd.DataFrame],
+                   derivations: dict[str, StanceDerivation],
+                   problems: list[DataProblem]) -> StanceSource:
+    """One stance source for the data set; a mix is a problem of the unlabelled files."""
+    sources = {name: (derivations[name].source if name in derivations else "measured")
+               for name in frames}
+    kinds = set(sources.values())
+    if len(kinds) > 1:
+        files = dict((n, f) for n, f, _ in trials)
+        counts = {k: sum(v == k for v in sources.values()) for k in sorted(kinds)}
+        text = ", ".join(f"{k}: {c} trial(s)" for k, c in counts.items())
+        for name, src in sources.items():
+            if src != "measured" or "measured" not in kinds:
+                problems.append(DataProblem(
+                    files[name], f"stance labels come from {src} here but not in other trials "
+                    f"({text}): give every trial a stance column, or none", "stance"))
+        return "measured"
+    return kinds.pop() if kinds else "measured"
+
 
 
 def check_dataset(path: str | Path, *, tolerances: FormatTolerances | None = None) -> list[DataProblem]:

@@ -13,6 +13,7 @@ from typing import Annotated, Any, Iterable, Literal
 from pydantic import Field, StringConstraints, field_validator, model_validator
 
 from ...config import EffectSpec, FiniteFloat, NonNegFloat, PositiveFloat, StrictModel
+from .channels import ChannelGroup
 
 SCHEMA_VERSION = 1
 """The format version this package reads and writes."""
@@ -104,6 +105,24 @@ class DatasetMeta(StrictModel):
                                                description="Trial name → trial entry.")
     description: str = Field("", description="Free-form notes on the data set.")
     generator: GeneratorMeta | None = Field(None, description="Set for synthetic data.")
+    channels: list[ChannelGroup] | None = Field(
+        None, description="Channel groups measured (joint_angles, joint_velocities, "
+        "joint_torques, trunk_orientation, trunk_angular_velocity, trunk_position, "
+        "trunk_linear_velocity, foot_force, intrusion); absent: all of them. The columns of "
+        "a group not listed must be absent from the trial files.")
+
+    @field_validator("channels")
+    @classmethod
+    def _channels_listed_once(cls, value: list[ChannelGroup] | None) -> list[ChannelGroup] | None:
+        if value is None:
+            return value
+        if not value:
+            raise ValueError("channels: list at least one channel group (or leave the key out: "
+                             "all groups measured)")
+        twice = sorted({g.value for g in value if value.count(g) > 1})
+        if twice:
+            raise ValueError(f"channels: {', '.join(twice)} listed more than once")
+        return value
 
     @model_validator(mode="after")
     def _files_unique(self) -> "DatasetMeta":

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ...config import load_robot
 from ...paths import resolve_file
-from ...robot.model import Biped
+from ...robot.kinematics import LegGeometry, leg_geometry
+from ...robot.model import SIDES, Biped
 
 
 @dataclass(frozen=True)
@@ -21,6 +22,8 @@ class RobotFacts:
         dq_max: URDF velocity limit per joint [rad/s].
         tau_max: URDF effort limit per joint [N·m].
         weight: m g [N].
+        legs: leg geometry per side (``"left"``, ``"right"``), for the foot kinematics
+            of stance derivation (empty: unknown).
     """
 
     name: str
@@ -30,6 +33,7 @@ class RobotFacts:
     dq_max: dict[str, float]
     tau_max: dict[str, float]
     weight: float
+    legs: dict[str, LegGeometry] = field(default_factory=dict)
 
 
 def _file_stamp(path: Path) -> tuple[str, int, int]:
@@ -73,7 +77,7 @@ def load_robot_facts(name: str, folder: Path | None) -> RobotFacts:
         q_lower=dict(zip(joints, map(float, lo))), q_upper=dict(zip(joints, map(float, hi))),
         dq_max=dict(zip(joints, map(float, biped.velocity_limits))),
         tau_max=dict(zip(joints, map(float, biped.torque_limits))),
-        weight=biped.weight)
+        weight=biped.weight, legs={side: leg_geometry(biped, side) for side in SIDES})
     _FACTS_CACHE[key] = (_file_stamp(config.urdf_path), facts)
     return facts
 

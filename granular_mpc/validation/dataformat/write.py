@@ -14,6 +14,7 @@ import yaml
 from ...columns import META_FILE
 from ...config import validate
 from ...exceptions import ConfigError, DataFormatError, DataProblem, OutputError
+from .channels import ChannelSet
 from .checks import check_frame
 from .meta import SUFFIXES, DatasetMeta
 from .robot_facts import load_robot_facts
@@ -57,7 +58,7 @@ def check_trials(meta: DatasetMeta | Mapping[str, Any], trials: Mapping[str, pd.
             continue
         check_frame(df, np.arange(1, len(df) + 1), file=entry.file, strict_types=True,
                     facts=facts, fs=meta.sample_rate_hz, speed=entry.commanded_speed_mps,
-                    tol=tol, problems=problems)
+                    tol=tol, problems=problems, channels=ChannelSet.of(meta.channels))
     return problems
 
 
