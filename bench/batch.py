@@ -10,7 +10,11 @@ are stepped 0.1 s first; PD law to the standing pose in the loop, 150 N·m/rad, 
   :class:`granular_mpc.dynamics.batch.BatchPlant` with ``parallelization="thread"`` over
   ``--threads`` (default: all CPUs) — the figure of issue 12 (target ≥ 200 k on 2 cores);
 * batch_env_steps_per_s_serial — the same batch, one thread;
-* batch_thread_speedup — their ratio (how well the cores are used);
+* batch_thread_speedup — their ratio (how well the cores are used; on a machine loaded
+  by other processes it says little);
+* batch_cpu_us_per_env_step / _serial — process CPU time per robot-step [µs], threaded and
+  serial: what a robot-step costs a core, much less sensitive to the machine's load than
+  wall-clock rates (an idle machine with C cores approaches C / this per µs);
 * single_compiled_steps_per_s — one robot, :class:`CompiledPlant`, chunked calls;
 * gym_vector_env_steps_per_s / gym_vector_plant_steps_per_s — the Gymnasium vector env
   (``granular_mpc/BipedSand-v0``, same robots, zero action) in policy steps (100 Hz) and
@@ -40,7 +44,8 @@ DROP = DropConfig()
 
 
 def batch_rate(fast, biped, robots, steps, parallelization, threads, reps=3):
-    """Median robot-steps per second of ``robots`` robots stepped ``steps`` steps per rep."""
+    """(median robot-steps per wall second, median process CPU µs per robot-step) of
+    ``robots`` robots stepped ``steps`` steps per repetition."""
     batch = BatchPlant(fast, robots, parallelization=parallelization, threads=threads)
     rng = np.random.default_rng(0)
     q0 = np.tile(biped.standing_configuration(0.005), (robots, 1))
@@ -48,14 +53,15 @@ def batch_rate(fast, biped, robots, steps, parallelization, threads, reps=3):
     q_hold = biped.actuated(q0[0])
     gains = dict(q_ref=q_hold, kp=DROP.kp, kd=DROP.kd)
     s = batch.step(batch.initial_state(q0), n_steps=200, **gains)
-    rates = []
+    rates, cpu = [], []
     for _ in range(reps):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         s = batch.step(s, n_steps=steps, **gains)
         rates.append(robots * steps / (time.perf_counter() - t0))
+        cpu.append((time.process_time() - c0) / (robots * steps) * 1e6)
     assert not s.diverged.any()
     assert s.foot_in_contact(0).all() and s.foot_in_contact(1).all(), "a foot left the sand"
-    return statistics.median(rates)
+    return statistics.median(rates), statistics.median(cpu)
 
 
 def single_rate(fast, biped, steps, reps=3):
@@ -106,11 +112,13 @@ def main() -> None:
     biped = Biped.from_config(robot, with_visuals=False)
     fast = CompiledPlant(Plant(biped, build_terrain(load_terrain("dry_sand"), robot), SimConfig()))
     steps = max(fast.chunk, int(round(args.seconds / fast.dt)))
-    threaded = batch_rate(fast, biped, args.robots, steps, "thread", threads)
-    serial = batch_rate(fast, biped, args.robots, steps, "serial", 1)
+    threaded, cpu_threaded = batch_rate(fast, biped, args.robots, steps, "thread", threads)
+    serial, cpu_serial = batch_rate(fast, biped, args.robots, steps, "serial", 1)
     figures = {"batch_env_steps_per_s": threaded,
                "batch_env_steps_per_s_serial": serial,
                "batch_thread_speedup": threaded / serial,
+               "batch_cpu_us_per_env_step": cpu_threaded,
+               "batch_cpu_us_per_env_step_serial": cpu_serial,
                "batch_robots": args.robots,
                "batch_threads": threads,
                "single_compiled_steps_per_s": single_rate(fast, biped, steps * 4)}
@@ -119,7 +127,7 @@ def main() -> None:
         figures["gym_vector_env_steps_per_s"] = env_rate
         figures["gym_vector_plant_steps_per_s"] = env_plant_rate
     emit(figures, args.json, units={"_per_s": "steps/s", "_per_s_serial": "steps/s",
-                                    "speedup": "x"})
+                                    "speedup": "x", "_env_step": "us", "_step_serial": "us"})
 
 
 if __name__ == "__main__":

@@ -12,6 +12,10 @@ Figures (all measured in this process, side by side):
   :class:`granular_mpc.dynamics.compiled.CompiledPlant` (the whole step one compiled C
   function, the PD law inside it, ``chunk`` = 10 steps per call), measured right after the
   reference from the same settled state; ``plant_compiled_speedup_sand`` is the ratio.
+* plant_steps_per_s_sand_fast_plant — the same through ``FastPlant``, the drop-in with
+  ``Plant``'s interface (``plant.step(d, tau)``, read-outs as ``PlantData``).
+* plant_cpu_us_per_step_sand / _sand_compiled — process CPU time per step [µs] of the
+  two (much less sensitive than wall-clock rates to a machine loaded by other processes).
 * plant_steps_per_s_sand_compiled_per_step — compiled, one call per step with the PD
   torque computed in Python and written into ``CompiledData.tau``
   (``CompiledPlant.advance``: what a Python controller stepping the plant sees).
@@ -32,9 +36,10 @@ the reused acceleration by M⁻¹Δτ —, forward kinematics 1.3 µs, frame pla
 array slicing into the contact buffers, ``pin.Force`` construction, the end-stop check,
 the ``_clear_height`` property recomputing the sole radius) and ``Plant.step`` (≈ 25 µs:
 vector arithmetic, the divergence check's reductions), ``PlantData.set_torque``
-(``np.array_equal``, ≈ 12 µs) and ``ContactData.commit`` (≈ 4 µs). Moving that glue into
-one compiled function per step would be the next speed-up; the contact law itself is
-already cheap once compiled (8× faster than CasADi's VM).
+(``np.array_equal``, ≈ 12 µs) and ``ContactData.commit`` (≈ 4 µs). The compiled plant
+removes that glue: the whole step is one C function (``CompiledPlant``; its own profile,
+in ``granular_mpc/dynamics/compiled.py``, is dominated by the two feet's terrain law,
+≈ 60 %, then ABA and the Verlet M⁻¹Δτ correction).
 """
 
 from __future__ import annotations
@@ -51,12 +56,15 @@ import pinocchio as pin
 from granular_mpc.config import DropConfig, GuideRigConfig, SimConfig, load_robot, load_terrain
 from granular_mpc.dynamics import Plant
 from granular_mpc.dynamics.compiled import CompiledPlant
+from granular_mpc.dynamics.fast_plant import FastPlant
 from granular_mpc.robot import Biped
 from granular_mpc.terrain import build_terrain
 from granular_mpc.terrain.closed_form import FLOAT, FootShape, sagittal_forces
 from granular_mpc.terrain.rft_numeric import sagittal_forces_numeric
 
 DROP, RIG = DropConfig(), GuideRigConfig()
+#: process CPU time per step [µs] of the last rate measurement, by terrain kind and path
+CPU_US: dict[str, float] = {}
 
 
 def settled(biped, terrain, seconds=0.8):
@@ -88,10 +96,11 @@ def plant_rate(biped, terrain, steps=3000):
     """Steps per wall second with both feet in contact (checked before and after)."""
     plant, d, q_hold = settled(biped, terrain)
     assert d.foot_in_contact(0) and d.foot_in_contact(1), "a foot is off the ground"
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for _ in range(steps):
         plant.step(d, pd(biped, d, q_hold))
     wall = time.perf_counter() - t0
+    CPU_US[terrain.kind] = (time.process_time() - c0) / steps * 1e6
     assert d.foot_in_contact(0) and d.foot_in_contact(1), "a foot left the ground"
     return steps / wall, plant.dt
 
@@ -102,9 +111,10 @@ def compiled_rates(biped, terrain, steps=20000):
     fast = CompiledPlant(plant)
     s = fast.state_from_data(d)
     kp, kd = np.full(6, DROP.kp), np.full(6, DROP.kd)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     s1 = fast.step(s, n_steps=steps, q_ref=q_hold, kp=kp, kd=kd)
     chunked = steps / (time.perf_counter() - t0)
+    CPU_US[terrain.kind + "_compiled"] = (time.process_time() - c0) / steps * 1e6
     assert s1.foot_in_contact(0) and s1.foot_in_contact(1), "a foot left the ground"
     n = steps // 4
     d = fast.data_from_state(s)
@@ -114,7 +124,15 @@ def compiled_rates(biped, terrain, steps=20000):
         d.tau[:] = kp * (q_hold - d.q[iq]) - kd * d.v[iv]
         fast.advance(d)
     per_step = n / (time.perf_counter() - t0)
-    return chunked, per_step
+    # the drop-in: Plant's interface (plant.step(d, tau)) on the compiled step
+    drop_in = FastPlant(plant, fast)
+    d = drop_in.new_data(s.q, s.v)
+    drop_in.step(d, pd(biped, d, q_hold))
+    t0 = time.perf_counter()
+    for _ in range(n):
+        drop_in.step(d, pd(biped, d, q_hold))
+    drop_in_rate = n / (time.perf_counter() - t0)
+    return chunked, per_step, drop_in_rate
 
 
 def contact_call_us(terrain, calls=20000):
@@ -170,16 +188,19 @@ def main() -> None:
     figures: list[tuple[str, float, str]] = []
     rate_sand, dt = plant_rate(biped, sand)
     rate_rigid, _ = plant_rate(biped, rigid)
-    fast_sand, fast_sand_py = compiled_rates(biped, sand)
-    fast_rigid, _ = compiled_rates(biped, rigid)
+    fast_sand, fast_sand_py, fast_sand_drop_in = compiled_rates(biped, sand)
+    fast_rigid, _, _ = compiled_rates(biped, rigid)
     figures += [("plant_steps_per_s_sand", rate_sand, "steps/s"),
                 ("plant_steps_per_s_rigid", rate_rigid, "steps/s"),
                 ("plant_realtime_factor_sand", rate_sand * dt, "x"),
                 ("plant_steps_per_s_sand_compiled", fast_sand, "steps/s"),
                 ("plant_steps_per_s_rigid_compiled", fast_rigid, "steps/s"),
                 ("plant_steps_per_s_sand_compiled_per_step", fast_sand_py, "steps/s"),
+                ("plant_steps_per_s_sand_fast_plant", fast_sand_drop_in, "steps/s"),
                 ("plant_compiled_speedup_sand", fast_sand / rate_sand, "x"),
-                ("plant_realtime_factor_sand_compiled", fast_sand * dt, "x")]
+                ("plant_realtime_factor_sand_compiled", fast_sand * dt, "x"),
+                ("plant_cpu_us_per_step_sand", CPU_US["granular"], "us"),
+                ("plant_cpu_us_per_step_sand_compiled", CPU_US["granular_compiled"], "us")]
     jit_us, vm_us = contact_call_us(sand), contact_call_us(sand_vm, calls=4000)
     figures += [("contact_call_us_jit", jit_us, "us"), ("contact_call_us_vm", vm_us, "us"),
                 ("contact_jit_speedup", vm_us / jit_us, "x")]

@@ -6,6 +6,7 @@
     granular-mpc synth CONFIG --effect NAME[:k=v,…] --noise PREFIX=STD --seed N --out DATA_DIR
     granular-mpc validate DATA_DIR [--model granular|rigid|planar] [--effect NAME …] --out DIR
     granular-mpc diagnose DATA_DIR --out DIR
+    granular-mpc import SOURCE --mapping MAP.yaml --out DATA_DIR
     granular-mpc bench [--json DIR]
 
 Bad input (malformed YAML, unknown key, wrong type, a ``--set`` of a key that does not
@@ -29,7 +30,7 @@ from typing import Annotated, Any, Iterator, Optional
 
 import typer
 
-from .exceptions import ConfigError, GranularMpcError, OutputError
+from .exceptions import ConfigError, DataFormatError, GranularMpcError, OutputError
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -67,7 +68,7 @@ def _errors(debug: bool) -> Iterator[None]:
     except KeyboardInterrupt:
         _err("interrupted")
         raise typer.Exit(EXIT_INTERRUPTED) from None
-    except (ConfigError, OutputError) as exc:
+    except (ConfigError, DataFormatError, OutputError) as exc:
         if debug:
             traceback.print_exc()
         _err(f"error: {exc}")
@@ -418,6 +419,28 @@ def diagnose(
                            terrain=terrain, workers=workers)
         print(res.verdict["text"])
         print(f"wrote {out / 'diagnosis.json'}")
+
+
+@app.command("import")
+def import_(
+    source: Annotated[Path, typer.Argument(help="A ROS 2 bag folder (sqlite3 or MCAP), or a folder / file of CSV or Parquet streams.")],
+    mapping: Annotated[Path, typer.Option("--mapping", "-m", help="Mapping file: topic/column -> channel, units, frames, clocks (docs/import.md).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Data set folder to write (format v1 with declared channels).")],
+    format: Annotated[str, typer.Option("--format", help="Trial file format: csv or parquet.")] = "csv",
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a data set this command wrote before.")] = False,
+    debug: DebugOpt = False,
+) -> None:
+    """Import a lab log into a checked data set: DATA_DIR/meta.yaml + one file per trial."""
+    from .importers import import_log
+    from .validation.dataformat import load_dataset
+
+    with _errors(debug):
+        if format not in ("csv", "parquet"):
+            raise ConfigError(f"unknown format {format!r}", key="--format", value=format,
+                              allowed="csv, parquet")
+        res = import_log(source, mapping, out, format=format, overwrite=overwrite)
+        print(load_dataset(res.path).channel_report())
+        print(f"wrote {res.path}")
 
 
 def main() -> None:

@@ -8,11 +8,12 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from granular_mpc.config import SimConfig
+from granular_mpc.config import EffectSpec, SimConfig, load_terrain
 from granular_mpc.dynamics import Plant
 from granular_mpc.dynamics import rigid_body_sx as rb
 from granular_mpc.dynamics.compiled import CompiledPlant
 from granular_mpc.exceptions import ConfigError, PlantDivergedError
+from granular_mpc.terrain import build_terrain
 
 KP, KD = 150.0, 3.0
 
@@ -35,8 +36,14 @@ def _friction(q_a, dq_a):
 
 
 @pytest.fixture(scope="module")
-def euler_pair(biped, sand):
-    plant = Plant(biped, sand, SimConfig(integrator="semi_implicit_euler"),
+def euler_pair(biped, robot_config):
+    """Sand with two terrain effects (one from the terrain file's list, one extra), the
+    semi-implicit Euler integrator and a joint effect: one compiled model for all three."""
+    config = load_terrain("dry_sand").model_copy(
+        update={"effects": [EffectSpec(name="cohesion", params={"suction": 2500.0})]})
+    terrain = build_terrain(config, robot_config,
+                            extra_effects=[EffectSpec(name="inertial_drag", params={"c_d": 3.0})])
+    plant = Plant(biped, terrain, SimConfig(integrator="semi_implicit_euler"),
                   joint_effects=(_friction,))
     return plant, CompiledPlant(plant)
 
@@ -189,10 +196,12 @@ def test_n_steps_match_reference_while_sinking(pair, request):
     _assert_same(fast, s, d, tol=1e-8)
 
 
-def test_semi_implicit_euler_with_joint_effect_and_wrench(euler_pair):
-    """The semi-implicit Euler step with a traced joint effect and a constant trunk wrench,
-    in contact, equals the reference over 15 steps."""
+def test_semi_implicit_euler_with_effects_and_wrench(euler_pair):
+    """The semi-implicit Euler step with two terrain effects (cohesion, inertial drag), a
+    traced joint effect and a constant trunk wrench, in contact, equals the reference over
+    15 steps."""
     plant, fast = euler_pair
+    assert {"cohesion.suction", "inertial_drag.c_d"} <= set(plant.terrain.param_names)
     rng = np.random.default_rng(5)
     d, q_hold = _contact_state(plant, rng)
     wrench = np.array([3.0, -2.0, 5.0, 0.3, 0.1, -0.2])

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..exceptions import ConfigError
 from .compiled import CompiledPlant
-from .step_sx import AUX_NAMES, StepLayout
+from .step_sx import AUX_NAMES, StepLayout, aux_foot
 
 PARALLELIZATIONS = ("thread", "serial")
 
@@ -44,8 +44,8 @@ class BatchState:
         t: simulated time per robot [s] (N,); steps: steps taken per robot (N,).
         x: flat states (N, nx), layout :class:`~.step_sx.StepLayout`.
         started: whether each robot has stepped (Verlet: ``a`` evaluated) (N,).
-        aux: last call's auxiliary output per robot (N, len(AUX_NAMES)): per foot force W
-            [N], mean contact point W [m], contact flag; then the largest |v| of the call.
+        aux: last call's auxiliary output per robot (N, len(AUX_NAMES)), layout
+            :data:`~.step_sx.AUX_FOOT` per foot, then the largest |v| of the call.
         diverged: robots whose state exceeded ``sim.max_speed`` or became non-finite (N,).
     """
 
@@ -80,7 +80,7 @@ class BatchState:
 
     def foot_force(self, foot: int) -> np.ndarray:
         """Terrain force on foot ``foot`` (0 left, 1 right) in W [N], (N, 3)."""
-        return self.aux[:, 7 * foot: 7 * foot + 3]
+        return aux_foot(self.aux, foot, "force")
 
     def foot_in_contact(self, foot: int) -> np.ndarray:
         """Whether a patch of foot ``foot`` is in contact, (N,) bool."""

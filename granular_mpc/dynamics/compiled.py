@@ -50,7 +50,7 @@ import numpy as np
 from ..exceptions import ConfigError, PlantDivergedError
 from .codegen import compile_functions
 from .plant import Plant, PlantData
-from .step_sx import AUX_NAMES, StepBuilder, StepLayout
+from .step_sx import AUX_NAMES, StepBuilder, StepLayout, aux_foot
 
 #: steps per compiled call in :meth:`CompiledPlant.step` (``mapaccum``)
 DEFAULT_CHUNK = 10
@@ -64,8 +64,9 @@ class CompiledState:
         t: simulated time [s]; steps: steps taken.
         x: the flat state (layout :class:`~.step_sx.StepLayout`).
         started: whether a step has been taken (with Verlet: ``a`` has been evaluated).
-        aux: after a step, per foot force in W [N], mean contact point in W [m] and
-            contact flag, then the largest |v| of the last call (:data:`AUX_NAMES`).
+        aux: after a step, per foot the terrain force, mean contact point, contact flag,
+            mean diagnostics and evaluated flag (:data:`~.step_sx.AUX_FOOT`), then the
+            largest |v| of the last call (:data:`~.step_sx.AUX_NAMES`).
         layout: the layout of ``x``.
     """
 
@@ -110,11 +111,15 @@ class CompiledState:
 
     def foot_force(self, foot: int) -> np.ndarray:
         """Total terrain force on foot ``foot`` (0 left, 1 right) in W [N], last step."""
-        return self.aux[7 * foot: 7 * foot + 3]
+        return aux_foot(self.aux, foot, "force")
 
     def foot_point(self, foot: int) -> np.ndarray:
         """Mean contact point of foot ``foot``'s patches in W [m], last step."""
-        return self.aux[7 * foot + 3: 7 * foot + 6]
+        return aux_foot(self.aux, foot, "point")
+
+    def foot_diag(self, foot: int) -> np.ndarray:
+        """Mean over foot ``foot``'s patches of (depth, f_cap_z, x_s, y_s, z_s, ψ_c), last step."""
+        return aux_foot(self.aux, foot, "diag")
 
     def foot_in_contact(self, foot: int) -> bool:
         """Whether a patch of foot ``foot`` is in contact (committed state)."""

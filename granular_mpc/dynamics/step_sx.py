@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from ..columns import AXES
 from ..config import EffectSpec
 from ..exceptions import ConfigError
 from ..robot.model import SIDES
@@ -35,10 +36,28 @@ from ..terrain import build_terrain
 from ..terrain.contact import DIAG_NAMES, N_KIN
 from . import rigid_body_sx as rb
 
-#: length of the auxiliary output per step: per foot force (3, W) [N], mean contact
-#: point (3, W) [m], in-contact flag; then max |v| after the step
-AUX_NAMES = tuple(f"{side}_{name}" for side in SIDES
-                  for name in ("fx", "fy", "fz", "px", "py", "pz", "contact")) + ("speed_max",)
+#: per-foot part of the auxiliary output of a step (all in W, SI): the terrain force on the
+#: foot [N], the mean contact point of its patches [m], its contact flag (committed), the
+#: mean over its patches of the terrain diagnostics (``DIAG_NAMES``: depth, f_cap_z,
+#: x_s, y_s, z_s, ψ_c) and whether its contact law was evaluated this step (0 when the
+#: foot was clear of the surface and skipped, as in the reference plant)
+AUX_FOOT = (("force", slice(0, 3)), ("point", slice(3, 6)), ("contact", slice(6, 7)),
+            ("diag", slice(7, 7 + len(DIAG_NAMES))),
+            ("evaluated", slice(7 + len(DIAG_NAMES), 8 + len(DIAG_NAMES))))
+#: size of the per-foot part
+AUX_PER_FOOT = 8 + len(DIAG_NAMES)
+#: names of the auxiliary output: both feet (left first), then the largest |v| of the call
+_FOOT_NAMES = (tuple(f"force_{a}" for a in AXES) + tuple(f"point_{a}" for a in AXES)
+               + ("contact",) + DIAG_NAMES + ("evaluated",))
+AUX_NAMES = tuple(f"{side}_{name}" for side in SIDES for name in _FOOT_NAMES) + ("speed_max",)
+
+
+def aux_foot(aux, foot: int, part: str):
+    """The ``part`` (see :data:`AUX_FOOT`) of foot ``foot`` in an aux vector or rows (…, n)."""
+    sl = dict(AUX_FOOT)[part]
+    base = foot * AUX_PER_FOOT
+    return aux[..., base + sl.start: base + sl.stop]
+
 
 _JIT_LOCK = threading.Lock()
 
@@ -93,11 +112,12 @@ class StepLayout:
 def symbolic_contact(terrain, robot_config) -> ca.Function:
     """The terrain model's per-foot contact law as a CasADi SX function.
 
-    The terrain keeps only its compiled form (``terrain.contact.function``); when that is
-    an external C function the same terrain is rebuilt with the compiler switched off
-    (``GRANULAR_MPC_JIT=0``), which yields the identical SX function.
+    Uses ``terrain.contact.symbolic`` when the contact model keeps its SX function;
+    otherwise its compiled form (``terrain.contact.function``) is used when it is still SX,
+    and when it is an external C function the same terrain is rebuilt with the compiler
+    switched off (``GRANULAR_MPC_JIT=0``), which yields the identical SX function.
     """
-    fn = terrain.contact.function
+    fn = getattr(terrain.contact, "symbolic", None) or terrain.contact.function
     if fn.is_a("SXFunction"):
         return fn
     specs = [EffectSpec(name=eff.name, params=dict(vals)) for eff, vals in terrain.effects]
@@ -189,7 +209,7 @@ class StepBuilder:
         """Acceleration and the evaluated (uncommitted) patch states at (q, v).
 
         Mirrors :meth:`Plant.forward`. Returns ``(a, new_states, aux_feet)`` with
-        ``aux_feet`` the per-foot (force W, mean point W, contact flag) list.
+        ``aux_feet`` the per-foot parts of :data:`AUX_FOOT`, in order.
         """
         L = self.layout
         n, S = L.n_patches, L.patch_state
@@ -211,13 +231,15 @@ class StepBuilder:
             wrench_local = live * out[n * per_patch: n * per_patch + 6]
             fext[jid - 1] = ca.SX(ca.DM(dual)) @ wrench_local
             f_sum, p_sum, flag = ca.SX.zeros(3, 1), ca.SX.zeros(3, 1), 0.0
+            d_sum = ca.SX.zeros(len(DIAG_NAMES), 1)
             for k in range(n):
                 b = k * per_patch
                 f_sum = f_sum + live * out[b:b + 3]
                 p_sum = p_sum + out[b + 3:b + 6] / n
                 new_states.append(live * out[b + 6:b + 6 + S])
                 flag = ca.fmax(flag, live * out[b + 6 + 6])
-            aux += [f_sum, p_sum, flag]
+                d_sum = d_sum + live * out[b + 6 + S:b + 6 + S + len(DIAG_NAMES)] / n
+            aux += [f_sum, p_sum, flag, d_sum, live]
         # joint end stops, joint damping and the joint-effect hook (actuated joints)
         qa = ca.vertcat(*[q[i] for i in self.iq])
         va = ca.vertcat(*[v[i] for i in self.iv])
@@ -284,4 +306,5 @@ class StepBuilder:
                            ["x", "u", "theta", "wrench"], ["x_next"])
 
 
-__all__ = ["AUX_NAMES", "StepLayout", "StepBuilder", "symbolic_contact"]
+__all__ = ["AUX_FOOT", "AUX_NAMES", "AUX_PER_FOOT", "aux_foot", "StepLayout", "StepBuilder",
+           "symbolic_contact"]

@@ -1,0 +1,189 @@
+"""A drop-in for the reference :class:`~.plant.Plant` that steps with the compiled code.
+
+    plant = FastPlant(Plant(biped, terrain, sim))      # instead of the Plant itself
+    d = plant.new_data(q0)
+    d.base_wrench = rig                                # None, a 6-vector or a callable
+    for _ in range(n):
+        plant.step(d, controller(d))                   # same call as Plant.step
+    d.foot_force(0), d.foot_diag(0), d.foot_point(0), d.foot_in_contact(0)
+
+:class:`FastPlant` / :class:`FastPlantData` offer what the closed loop, the run log, the
+synthesiser and the replay read from ``Plant`` / ``PlantData`` (``new_data``, ``step``,
+``simulate``, ``energy``; ``t``, ``steps``, ``q``, ``v``, ``tau``, ``tau_a``,
+``set_torque``, ``base_wrench``, ``foot_force``, ``foot_point``, ``foot_in_contact``,
+``foot_diag``) with the same physics: one compiled call per step
+(:class:`~.compiled.CompiledPlant`). A callable ``base_wrench`` (e.g. a guide rig) is
+evaluated in Python where the reference evaluates it — at the drifted configuration and
+the half-step velocity of the Verlet step (which needs ``M⁻¹Δτ`` from Pinocchio when the
+torque changed), at the start state for semi-implicit Euler — so it matches too.
+Not offered: the per-patch ``contact`` data, ``pin`` and ``fext`` of ``PlantData``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from .compiled import CompiledPlant
+from .plant import Plant
+from .step_sx import aux_foot
+
+
+class FastPlant:
+    """The reference plant's interface on the compiled step.
+
+    Args:
+        plant: the reference :class:`~.plant.Plant` (model; not stepped).
+        compiled: an already built :class:`CompiledPlant` of ``plant`` (optional).
+
+    Attributes:
+        reference: the reference plant; compiled: the compiled plant.
+    """
+
+    def __init__(self, plant: Plant, compiled: CompiledPlant | None = None) -> None:
+        self.reference = plant
+        self.compiled = compiled if compiled is not None else CompiledPlant(plant)
+
+    @property
+    def biped(self):
+        return self.reference.biped
+
+    @property
+    def terrain(self):
+        return self.reference.terrain
+
+    @property
+    def sim(self):
+        return self.reference.sim
+
+    @property
+    def joint_effects(self) -> tuple:
+        return self.reference.joint_effects
+
+    @property
+    def dt(self) -> float:
+        return self.reference.dt
+
+    def new_data(self, q0: np.ndarray, v0: np.ndarray | None = None) -> "FastPlantData":
+        """Data at configuration ``q0`` and velocity ``v0`` (as :meth:`Plant.new_data`)."""
+        return FastPlantData(self, self.compiled.new_data(q0, v0))
+
+    def step(self, d: "FastPlantData", tau_a: np.ndarray | None = None) -> None:
+        """Advance ``d`` by one step with actuator torques ``tau_a`` [N·m] (held)."""
+        if tau_a is not None:
+            d.set_torque(tau_a)
+        c, data = self.compiled, d.data
+        w = d.base_wrench
+        if callable(w):
+            q, v = data.x[c.layout.q].copy(), data.x[c.layout.v].copy()
+            if not c.verlet:
+                data.wrench[:] = w(q, v)
+            else:
+                if not data.started:
+                    data.wrench[:] = w(q, v)
+                    data.call_start()
+                    data.started = True
+                a = data.x[c.layout.a].copy()
+                dtau = data.tau - data.x[c.layout.tau_prev]
+                if dtau.any():
+                    model = self.biped.model
+                    full = np.zeros(model.nv)
+                    full[self.biped.idx_v] = dtau
+                    a = a + pin.computeMinverse(model, d.pin_data, q) @ full
+                v_half = v + 0.5 * c.dt * a
+                q_new = pin.integrate(self.biped.model, q, v_half * c.dt)
+                data.wrench[:] = w(q_new, v_half)
+        else:
+            data.wrench[:] = 0.0 if w is None else w
+        c.advance(data, 1)
+        d.note_step()
+
+    def simulate(self, d: "FastPlantData", duration: float, controller=None) -> None:
+        """Step for ``duration`` [s]; ``controller(d) -> tau_a`` is called every step."""
+        n = int(round(duration / self.dt))
+        for _ in range(n):
+            self.step(d, None if controller is None else controller(d))
+
+    def energy(self, d: "FastPlantData") -> tuple[float, float]:
+        """(kinetic, potential) energy [J], potential relative to z = 0."""
+        model = self.biped.model
+        ke = pin.computeKineticEnergy(model, d.pin_data, d.q, d.v)
+        pe = pin.computePotentialEnergy(model, d.pin_data, d.q)
+        return float(ke), float(pe)
+
+
+class FastPlantData:
+    """Changing part of a :class:`FastPlant` run, read like ``PlantData``.
+
+    ``q`` and ``v`` are copies (the reference replaces its arrays every step, so a kept
+    reference never changes; a copy keeps that behaviour). ``foot_point`` holds the last
+    evaluated contact point of a foot that is clear of the surface, as the reference does.
+    """
+
+    def __init__(self, plant: FastPlant, data) -> None:
+        self.plant = plant
+        self.data = data
+        #: external trunk wrench: None, (f_W [N], m_W [N·m]) at the trunk origin, or a
+        #: callable (q, v) -> that 6-vector
+        self.base_wrench = None
+        self.pin_data = plant.biped.create_data()
+        self._point = np.zeros((2, 3))
+        self._idx_v = plant.biped.idx_v
+
+    @property
+    def t(self) -> float:
+        return self.data.t
+
+    @property
+    def steps(self) -> int:
+        return self.data.steps
+
+    @property
+    def q(self) -> np.ndarray:
+        return self.data.x[self.data.layout.q].copy()
+
+    @property
+    def v(self) -> np.ndarray:
+        return self.data.x[self.data.layout.v].copy()
+
+    @property
+    def tau(self) -> np.ndarray:
+        """Held generalised torque (nv; zero on the base) [N·m]."""
+        full = np.zeros(self.data.layout.nv)
+        full[self._idx_v] = self.data.tau
+        return full
+
+    @property
+    def tau_a(self) -> np.ndarray:
+        return self.data.tau.copy()
+
+    def set_torque(self, tau_a: np.ndarray) -> None:
+        """Hold actuator torques ``tau_a`` [N·m] (actuator order) from now on."""
+        self.data.tau[:] = tau_a
+
+    def note_step(self) -> None:
+        """Keep each evaluated foot's contact point (called by :meth:`FastPlant.step`)."""
+        for foot in (0, 1):
+            if aux_foot(self.data.aux, foot, "evaluated")[0] > 0.5:
+                self._point[foot] = aux_foot(self.data.aux, foot, "point")
+
+    # ------------------------------------------------------------------ read-outs
+    def foot_force(self, foot: int) -> np.ndarray:
+        """Total terrain force on foot ``foot`` (0 left, 1 right) in W [N]."""
+        return aux_foot(self.data.aux, foot, "force").copy()
+
+    def foot_point(self, foot: int) -> np.ndarray:
+        """Mean contact point of foot ``foot``'s patches in W [m]."""
+        return self._point[foot].copy()
+
+    def foot_in_contact(self, foot: int) -> bool:
+        L = self.data.layout
+        states = self.data.x[L.contact].reshape(2, L.n_patches, L.patch_state)
+        return bool(states[foot, :, 6].max() > 0.5)
+
+    def foot_diag(self, foot: int) -> np.ndarray:
+        """Mean over the foot's patches of (depth, f_cap_z, x_s, y_s, z_s, ψ_c)."""
+        return aux_foot(self.data.aux, foot, "diag").copy()
+
+
+__all__ = ["FastPlant", "FastPlantData"]
