@@ -6,7 +6,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from granular_mpc.dynamics.codegen import cache_dir, compile_functions, compiler
+from granular_mpc.codegen import cache_dir, compile_functions, compiler
 from granular_mpc.exceptions import ModelError
 
 

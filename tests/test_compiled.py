@@ -286,3 +286,10 @@ def test_in_place_path_equals_step(sand_pair):
     s = fast.step(d.state(), n_steps=12, q_ref=q_hold, kp=KP, kd=KD)
     fast.advance(d, 12)
     np.testing.assert_array_equal(d.state().x, s.x)
+
+
+def test_actuator_model_refused(biped, rigid):
+    """sim.actuators (not compiled yet) is refused rather than silently ignored."""
+    sim = SimConfig.model_validate({"actuators": {"friction": {"enabled": True}}})
+    with pytest.raises(ConfigError, match="actuators"):
+        CompiledPlant(Plant(biped, rigid, sim))

@@ -35,8 +35,10 @@ adds ≈ 1–2 µs, hence ``chunk`` steps per call. ``bench/plant.py`` measures 
 reference (11–13× faster there under load; the reference's own profile is in that file).
 
 Without a C compiler the same functions run in CasADi's virtual machine (same results,
-several times slower). Not supported: a callable trunk wrench (a constant wrench per call
-is) and joint effects that cannot be traced with CasADi (:class:`ConfigError`).
+several times slower). Not supported (:class:`ConfigError`, never silently ignored): the
+actuator model ``sim.actuators`` (joint friction, motor envelope, rotor inertia), joint
+effects that cannot be traced with CasADi, and a callable trunk wrench (a constant wrench
+per call is; :class:`~.fast_plant.FastPlant` evaluates a callable one in Python).
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ import casadi as ca
 import numpy as np
 
 from ..exceptions import ConfigError, PlantDivergedError
-from .codegen import compile_functions
+from ..codegen import compile_functions
 from .plant import Plant, PlantData
 from .step_sx import AUX_NAMES, StepBuilder, StepLayout, aux_foot
 

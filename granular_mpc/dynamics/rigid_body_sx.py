@@ -69,6 +69,9 @@ class TreeJoint:
 
 def tree_from_model(model: pin.Model) -> tuple[TreeJoint, ...]:
     """The joints 1 … njoints-1 of ``model`` as :class:`TreeJoint` (index i-1 ↔ joint i)."""
+    if np.any(np.asarray(model.armature) != 0.0):
+        raise ModelError("rotor inertia (model.armature) is not supported by the compiled "
+                         "plant")
     joints = []
     for j in range(1, model.njoints):
         short = model.joints[j].shortname()

@@ -20,8 +20,6 @@ the state at the start of the step — a plain torque command is ``k_p = k_d = 0
 
 from __future__ import annotations
 
-import os
-import threading
 import warnings
 from dataclasses import dataclass
 
@@ -29,10 +27,8 @@ import casadi as ca
 import numpy as np
 
 from ..columns import AXES
-from ..config import EffectSpec
 from ..exceptions import ConfigError
 from ..robot.model import SIDES
-from ..terrain import build_terrain
 from ..terrain.contact import DIAG_NAMES, N_KIN
 from . import rigid_body_sx as rb
 
@@ -57,9 +53,6 @@ def aux_foot(aux, foot: int, part: str):
     sl = dict(AUX_FOOT)[part]
     base = foot * AUX_PER_FOOT
     return aux[..., base + sl.start: base + sl.stop]
-
-
-_JIT_LOCK = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -109,33 +102,10 @@ class StepLayout:
         return slice(self.nq + 2 * self.nv + self.na, self.nx)
 
 
-def symbolic_contact(terrain, robot_config) -> ca.Function:
-    """The terrain model's per-foot contact law as a CasADi SX function.
-
-    Uses ``terrain.contact.symbolic`` when the contact model keeps its SX function;
-    otherwise its compiled form (``terrain.contact.function``) is used when it is still SX,
-    and when it is an external C function the same terrain is rebuilt with the compiler
-    switched off (``GRANULAR_MPC_JIT=0``), which yields the identical SX function.
-    """
-    fn = getattr(terrain.contact, "symbolic", None) or terrain.contact.function
-    if fn.is_a("SXFunction"):
-        return fn
-    specs = [EffectSpec(name=eff.name, params=dict(vals)) for eff, vals in terrain.effects]
-    config = terrain.config.model_copy(update={"effects": []})
-    with _JIT_LOCK:
-        old = os.environ.get("GRANULAR_MPC_JIT")
-        os.environ["GRANULAR_MPC_JIT"] = "0"
-        try:
-            rebuilt = build_terrain(config, robot_config, extra_effects=specs)
-        finally:
-            if old is None:
-                del os.environ["GRANULAR_MPC_JIT"]
-            else:
-                os.environ["GRANULAR_MPC_JIT"] = old
-    if rebuilt.param_names != terrain.param_names:  # pragma: no cover - defensive
-        raise ConfigError("could not rebuild the terrain's contact law symbolically",
-                          key="terrain")
-    return rebuilt.contact.function
+def symbolic_contact(terrain) -> ca.Function:
+    """The terrain model's per-foot contact law as a CasADi SX function
+    (``terrain.contact.symbolic``, the function the terrain compiles for the plant)."""
+    return terrain.contact.symbolic
 
 
 def _trace_joint_effect(fn, na: int) -> ca.Function:
@@ -170,9 +140,14 @@ class StepBuilder:
     def __init__(self, plant) -> None:
         biped, terrain = plant.biped, plant.terrain
         model = biped.model
+        actuators = getattr(plant, "actuators", None)
+        if actuators is not None and actuators.active:
+            raise ConfigError("the compiled plant does not model sim.actuators (joint "
+                              "friction, motor envelope, rotor inertia) yet; use the "
+                              "reference Plant", key="sim.actuators")
         self.plant = plant
         self.tree = rb.tree_from_model(model)
-        self.contact_fn = symbolic_contact(terrain, biped.config)
+        self.contact_fn = symbolic_contact(terrain)
         cm = terrain.contact
         self.layout = StepLayout(model.nq, model.nv, len(biped.idx_v), cm.n_slices,
                                  cm.state_size, len(terrain.param_names))

@@ -27,6 +27,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from ..codegen import compile_functions
 from ..effects import Effect, PatchState
 
 #: per-foot kinematic input: p_W_F (3), R_W_F column-major (9), v_W_F (3), ω_W (3)
@@ -229,53 +230,15 @@ class CompiledContact:
         outs += [f_local[i] for i in range(3)] + [m_local[i] for i in range(3)]
         self.n_out_patch = n_out_patch
         self.n_out = self.n_out_patch * n + 6
-        self.function = _maybe_compile(ca.Function("contact", [x], [ca.vertcat(*outs)]))
+        self.symbolic = ca.Function("contact", [x], [ca.vertcat(*outs)])
+        # compiled once per law (cached by source hash); -O2 keeps the results of earlier
+        # releases bit for bit; the virtual machine if there is no compiler
+        self.function = compile_functions("contact", [self.symbolic], fallback=True,
+                                          optimisation="-O2")["contact"]
 
     # ------------------------------------------------------------------ data part
     def new_data(self) -> "ContactData":
         return ContactData(self)
-
-
-def _maybe_compile(fn):
-    """Compile ``fn`` to C with the system compiler (cached by source hash), else return it.
-
-    Set ``GRANULAR_MPC_JIT=0`` to always use CasADi's virtual machine (same results,
-    about 7× slower). Cache folder: ``$GRANULAR_MPC_CACHE`` or ``~/.cache/granular_mpc``.
-    """
-    import hashlib
-    import os
-    import shutil
-    import subprocess
-    import tempfile
-    from pathlib import Path
-
-    import casadi as ca
-
-    if os.environ.get("GRANULAR_MPC_JIT", "1") == "0":
-        return fn
-    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
-    if not cc:
-        return fn
-    cache = Path(os.environ.get("GRANULAR_MPC_CACHE", Path.home() / ".cache" / "granular_mpc"))
-    try:
-        cache.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory() as tmp:
-            cg = ca.CodeGenerator("gen.c")
-            cg.add(fn)
-            cg.generate(tmp + os.sep)
-            src = Path(tmp, "gen.c").read_bytes()
-            key = hashlib.sha256(src + ca.__version__.encode()).hexdigest()[:20]
-            lib = cache / f"{fn.name()}_{key}.so"
-            if not lib.is_file():
-                out = Path(tmp, "gen.so")
-                subprocess.run([cc, "-O2", "-fPIC", "-shared", str(Path(tmp, "gen.c")), "-o",
-                                str(out)], check=True, capture_output=True, timeout=300)
-                partial = lib.with_suffix(f".{os.getpid()}.tmp")
-                shutil.copyfile(out, partial)
-                os.replace(partial, lib)     # atomic: parallel builds never see half a file
-        return ca.external(fn.name(), str(lib))
-    except (OSError, subprocess.SubprocessError, RuntimeError):
-        return fn
 
 
 class _FootBuffers:

@@ -9,7 +9,8 @@ code depends on — the robot model, the terrain law and its effects, the step s
 so a changed model gets a new library and an unchanged one is never rebuilt.
 
 Cache folder: ``$GRANULAR_MPC_CACHE`` or ``~/.cache/granular_mpc`` (the same folder as the
-terrain's compiled contact law). Compiler: ``$CC``, else ``cc`` or ``gcc`` on the PATH;
+terrain's compiled contact law: :mod:`granular_mpc.terrain.contact` builds it here
+too). ``GRANULAR_MPC_JIT=0`` with ``fallback=True``: CasADi's virtual machine. Compiler: ``$CC``, else ``cc`` or ``gcc`` on the PATH;
 flags ``-O3 -fPIC -shared`` (``-fopenmp`` for code with OpenMP maps). Without a compiler,
 :func:`compile_functions` raises :class:`~granular_mpc.exceptions.ModelError` unless
 ``fallback=True``, which returns the functions for CasADi's virtual machine (slow).
@@ -27,7 +28,7 @@ from typing import Sequence
 
 import casadi as ca
 
-from ..exceptions import ModelError
+from .exceptions import ModelError
 
 #: optimisation flags (no -ffast-math: it would change fmin/fmax/NaN semantics)
 CFLAGS = ("-O3", "-fPIC", "-shared")
@@ -47,18 +48,22 @@ def compiler() -> str | None:
 
 
 def compile_functions(prefix: str, functions: Sequence[ca.Function], *,
-                      fallback: bool = False) -> dict[str, ca.Function]:
+                      fallback: bool = False, optimisation: str = "-O3") -> dict[str, ca.Function]:
     """Generate C for ``functions``, build (or reuse) the cached library, load each function.
 
     Args:
         prefix: file-name prefix of the library.
         functions: CasADi functions with distinct names.
-        fallback: without a compiler, return the functions themselves instead of raising.
+        fallback: without a compiler (or if ``GRANULAR_MPC_JIT=0``, or the build fails),
+            return the functions themselves instead of raising.
+        optimisation: the compiler's optimisation flag (part of the cache key).
 
     Returns:
         Function name → ``casadi.external`` function from the library.
     """
     cc = compiler()
+    if fallback and os.environ.get("GRANULAR_MPC_JIT", "1") == "0":
+        return {f.name(): f for f in functions}
     if cc is None:
         if fallback:
             return {f.name(): f for f in functions}
@@ -68,7 +73,12 @@ def compile_functions(prefix: str, functions: Sequence[ca.Function], *,
         cache.mkdir(parents=True, exist_ok=True)
     except OSError:                         # read-only home: a per-user temporary folder
         cache = Path(tempfile.gettempdir()) / f"granular_mpc-cache-{os.getuid()}"
-        cache.mkdir(parents=True, exist_ok=True)
+        try:
+            cache.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            if fallback:
+                return {f.name(): f for f in functions}
+            raise ModelError(f"no writable cache folder for compiled code: {exc}") from exc
     with tempfile.TemporaryDirectory() as tmp:
         cg = ca.CodeGenerator("gen.c", {"with_header": False})
         for f in functions:
@@ -76,7 +86,8 @@ def compile_functions(prefix: str, functions: Sequence[ca.Function], *,
         cg.generate(tmp + os.sep)
         src_path = Path(tmp, "gen.c")
         src = src_path.read_bytes()
-        flags = list(CFLAGS) + (["-fopenmp"] if b"#pragma omp" in src else [])
+        flags = ([optimisation] + [f for f in CFLAGS if not f.startswith("-O")]
+                 + (["-fopenmp"] if b"#pragma omp" in src else []))
         key = hashlib.sha256(src + ca.__version__.encode() + " ".join(flags).encode())
         lib = cache / f"{prefix}_{key.hexdigest()[:20]}.so"
         if not lib.is_file():
