@@ -122,3 +122,23 @@ def rot_z(angle: float) -> np.ndarray:
 def skew(r) -> np.ndarray:
     """Cross-product matrix: ``skew(r) @ v == np.cross(r, v)``."""
     return np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+
+
+def skew_rows(r: np.ndarray) -> np.ndarray:
+    """Cross-product matrices (..., 3, 3) of stacked 3-vectors ``r`` (..., 3):
+    ``skew_rows(r)[i] == skew(r[i])``."""
+    r = np.asarray(r, dtype=float)
+    out = np.zeros(r.shape + (3,))
+    x, y, z = r[..., 0], r[..., 1], r[..., 2]
+    out[..., 0, 1], out[..., 0, 2] = -z, y
+    out[..., 1, 0], out[..., 1, 2] = z, -x
+    out[..., 2, 0], out[..., 2, 1] = -y, x
+    return out
+
+
+def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross products of stacked 3-vectors along the last axis, broadcasting (``np.cross``
+    without its axis handling, ~10× cheaper on small arrays)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)

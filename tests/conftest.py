@@ -1,7 +1,17 @@
-"""Shared fixtures: models are immutable, so build them once per test session."""
+"""Shared fixtures: models are immutable, so build them once per test session.
+
+Every closed loop in the suite runs on ProxSuite's generic (SSE2, bit-reproducible) build,
+so every machine tests the same realisation (docs/user-guide.md §3). The build is fixed
+when proxsuite is first imported in a process, hence here, before any test module is
+collected; a test that wants the default build sets the variable in a subprocess.
+"""
 from __future__ import annotations
 
-import pytest
+import os
+
+os.environ.setdefault("GRANULAR_MPC_PROXSUITE", "generic")
+
+import pytest  # noqa: E402  (the environment must be set before proxsuite is imported)
 
 from granular_mpc.config import load_robot, load_terrain
 from granular_mpc.robot import Biped

@@ -10,7 +10,6 @@ build gave the same figures to 1e-3 relative on the two walks) and what they are
 """
 
 import math
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,8 +23,6 @@ from granular_mpc.dynamics import Plant
 from granular_mpc.dynamics.plant import PlantData
 from granular_mpc.robot.kinematics import balanced_stance
 
-os.environ.setdefault("GRANULAR_MPC_PROXSUITE", "generic")
-
 #: name of ProxSuite's generic (SSE2, deterministic) binding module
 GENERIC_BINDING = "proxsuite_pywrap"
 
@@ -34,8 +31,8 @@ GENERIC_BINDING = "proxsuite_pywrap"
 def reproducible_proxsuite():
     assert proxsuite_build() == GENERIC_BINDING, (
         "closed-loop tests need ProxSuite's generic build: proxsuite was imported with "
-        f"another build ({proxsuite_build()}) before this module set "
-        "GRANULAR_MPC_PROXSUITE=generic")
+        f"another build ({proxsuite_build()}); tests/conftest.py sets "
+        "GRANULAR_MPC_PROXSUITE=generic before anything imports it")
 
 
 def test_sand_controller_derives_its_gait_from_the_ground(biped, sand, rigid):

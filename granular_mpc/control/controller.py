@@ -360,58 +360,78 @@ class WalkingController:
         contacts = np.zeros((N, 2), dtype=bool)
         load = np.zeros((N, 2))
         points = np.zeros((N, 2, self.mpc.n_points, 3))
+        centres: list = [[None, None] for _ in range(N)]    # support centre (x, y) per foot
         h_ref = self.ground.surface_height + self.com_height_ref
         # expected footholds: current swing targets, then one stride further
         stride = np.array([v_cmd[0] * self.schedule.period * 0.5, 0.0])
+        sched = self.schedule
+        # per foot, constant over the horizon: how long it stays down / until it lands
+        liftoff = [sched.time_to_liftoff(t, i) for i in range(2)]
+        touchdown = [sched.time_to_touchdown(t, i) for i in range(2)]
+        # the lever points depend only on (foot, stays down?, load): one evaluation each
+        lever_cache: dict = {}
+        centre_cache: dict = {}
         for k in range(N):
-            tm = t + (k + 0.5) * dt
-            c = self.schedule.contacts(tm)
+            tk = (k + 0.5) * dt
+            c = sched.contacts(t + tk)
             contacts[k] = c
             n_st = max(sum(c), 1)
             for i in range(2):
                 if not c[i]:
                     continue
                 load[k, i] = mg / n_st
-                if stance[i] and self.schedule.time_to_liftoff(t, i) >= (k + 0.5) * dt:
-                    points[k, i] = self._stance_lever_points(feet[i], load[k, i])
-                else:
-                    # lands within the horizon: its swing target, or one stride on
-                    xy = (d.target[i][:2] if d.target[i] is not None and not stance[i]
-                          else feet[i].points.mean(axis=0)[:2] + 2 * stride)
-                    points[k, i] = self._landing_points(xy, yaw_ref, load[k, i])
+                down = bool(stance[i] and liftoff[i] >= tk)
+                key = (i, down, load[k, i])
+                pts = lever_cache.get(key)
+                if pts is None:
+                    if down:
+                        pts = self._stance_lever_points(feet[i], load[k, i])
+                    else:
+                        # lands within the horizon: its swing target, or one stride on
+                        xy = (d.target[i][:2] if d.target[i] is not None and not stance[i]
+                              else feet[i].points.mean(axis=0)[:2] + 2 * stride)
+                        pts = self._landing_points(xy, yaw_ref, load[k, i])
+                    lever_cache[key] = pts
+                    centre_cache[key] = pts[:, :2].mean(axis=0)
+                points[k, i] = pts
+                centres[k][i] = centre_cache[key]
         # horizontal reference: the inverted pendulum rolled out over the planned supports,
         # so the MPC supplies the forces the foothold plan assumes instead of braking the
         # CoM toward a constant speed; height and attitude are regulated as usual
         omega = self.omega
         ch, sh = math.cosh(omega * dt), math.sinh(omega * dt)
-        p_xy, v_xy = com[:2].copy(), vcom[:2].copy()
+        px, py = float(com[0]), float(com[1])
+        vx, vy = float(vcom[0]), float(vcom[1])
         for k in range(N):
-            feet_k = [i for i in range(2) if contacts[k, i]]
-            if feet_k:
-                sup = np.mean([points[k, i][:, :2].mean(axis=0) for i in feet_k], axis=0)
-                rel = p_xy - sup
-                p_xy, v_xy = sup + rel * ch + v_xy / omega * sh, rel * omega * sh + v_xy * ch
+            cen = [cc for cc in centres[k] if cc is not None]
+            if cen:
+                sx, sy = (float(cen[0][0]), float(cen[0][1])) if len(cen) == 1 else \
+                    ((float(cen[0][0]) + float(cen[1][0])) / 2.0,
+                     (float(cen[0][1]) + float(cen[1][1])) / 2.0)
+                rx, ry = px - sx, py - sy
+                px, py, vx, vy = (sx + rx * ch + vx / omega * sh, sy + ry * ch + vy / omega * sh,
+                                  rx * omega * sh + vx * ch, ry * omega * sh + vy * ch)
             else:
-                p_xy = p_xy + v_xy * dt
-            x_ref[k, 2] = yaw_ref
-            x_ref[k, 3:5] = p_xy
-            x_ref[k, 5] = h_ref
-            x_ref[k, 9:11] = v_xy
+                px, py = px + vx * dt, py + vy * dt
+            x_ref[k, 3], x_ref[k, 4], x_ref[k, 9], x_ref[k, 10] = px, py, vx, vy
+        x_ref[:, 2] = yaw_ref
+        x_ref[:, 5] = h_ref
         capacity = None
         if self.ground.granular:
             rate = cfg.max_sink_rate
             capacity = np.zeros((N, 2))
+            cap = self.ground.capacity
             for i in range(2):
                 depth_now = self._depth(feet[i])
                 for k in range(N):
                     if not contacts[k, i]:
                         continue
-                    if stance[i] and self.schedule.time_to_liftoff(t, i) >= (k + 0.5) * dt:
+                    if stance[i] and liftoff[i] >= (k + 0.5) * dt:
                         depth = depth_now + rate * (k + 1) * dt
                     else:   # lands within the horizon, at the surface
-                        since = (k + 1) * dt - self.schedule.time_to_touchdown(t, i)
+                        since = (k + 1) * dt - touchdown[i]
                         depth = rate * max(since, 0.0)
-                    capacity[k, i] = self.ground.capacity(depth)
+                    capacity[k, i] = cap(depth)
         plan = self.mpc.solve(d.mpc, t=t, x0=x0, x_ref=x_ref, contacts=contacts,
                               points=points, nominal_load=load, capacity=capacity)
         d.plan = plan

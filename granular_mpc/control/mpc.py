@@ -29,12 +29,13 @@ rows (with a bound) for the foot's total force.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..config import MPCConfig
-from ..rotations import rot_z, skew
+from ..rotations import rot_z, skew, skew_rows
 from .contact_model import GroundModel
 from .solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
 
@@ -62,14 +63,40 @@ class MPCPlan:
 
 
 @dataclass
+class MPCWork:
+    """What one MPC tick needs that does not change between ticks: config-only terms
+    (cost diagonal, inverse inertia, the ground polytope's rows) and preallocated QP
+    buffers of the controller's fixed size (horizon N, ``max_pairs`` variable blocks).
+
+    The buffers are refilled in place every tick (ProxSuite copies them into its model).
+    """
+
+    q_rep: np.ndarray           # (N·12,) state-error weights, one block per step
+    inertia_inv_B: np.ndarray   # 3×3 inverse centroidal inertia, trunk frame [1/(kg m²)]
+    steps: np.ndarray           # (N, 1) k = 1 … N as floats
+    cone: np.ndarray            # polytope rows with h = 0 (per contact point), foot frame
+    capacity_rows: np.ndarray   # polytope rows with h > 0 (per foot), foot frame
+    h_capacity: np.ndarray      # their bounds [N]
+    H: np.ndarray               # (nu, nu)
+    g: np.ndarray               # (nu,)
+    C: np.ndarray               # (n_in, nu)
+    C4: np.ndarray              # view of C as (max_pairs, rows_per_pair, max_pairs, nu_pair)
+    l: np.ndarray               # (n_in,) −BIG everywhere (constant)
+    u: np.ndarray               # (n_in,)
+    lb: np.ndarray              # (nu,)
+    ub: np.ndarray              # (nu,)
+
+
+@dataclass
 class MPCData:
-    """Changing part of the MPC: the persistent solver and the last plan."""
+    """Changing part of the MPC: the persistent solver, the last plan, the work arrays."""
 
     solver: ProxQPSolver
     last: MPCPlan | None = None
     failures: int = 0
     solves: int = 0
     records: list = field(default_factory=list)
+    work: MPCWork | None = None
 
 
 @dataclass(frozen=True)
@@ -107,7 +134,22 @@ class CentroidalMPC:
         return self.max_pairs * self.rows_per_pair
 
     def new_data(self) -> MPCData:
-        return MPCData(ProxQPSolver(self.nu, 0, self.n_in, box=True, eps_abs=1e-4, max_iter=100))
+        return MPCData(ProxQPSolver(self.nu, 0, self.n_in, box=True, eps_abs=1e-4, max_iter=100),
+                       work=self._new_work())
+
+    def _new_work(self) -> MPCWork:
+        poly = self.ground.polytope
+        nu, n_in = self.nu, self.n_in
+        C = np.zeros((n_in, nu))
+        return MPCWork(
+            q_rep=np.tile(self._q_diag(), self.N),
+            inertia_inv_B=np.linalg.inv(self.inertia_B),
+            steps=np.arange(1, self.N + 1, dtype=float)[:, None],
+            cone=poly.G[poly.cone_rows], capacity_rows=poly.G[poly.capacity_rows],
+            h_capacity=poly.h[poly.capacity_rows],
+            H=np.zeros((nu, nu)), g=np.zeros(nu), C=C,
+            C4=C.reshape(self.max_pairs, self.rows_per_pair, self.max_pairs, self.nu_pair),
+            l=np.full(n_in, -BIG), u=np.zeros(n_in), lb=np.zeros(nu), ub=np.zeros(nu))
 
     # ---------------------------------------------------------------- weights
     def _q_diag(self) -> np.ndarray:
@@ -134,104 +176,118 @@ class CentroidalMPC:
                 the capacity at the depth the foot can have reached by then; the polytope
                 is scaled to it. None: the polytope's own bound.
         """
-        import time
-
         t0 = time.perf_counter()
+        w = data.work
+        if w is None:
+            w = data.work = self._new_work()
         c = self.config
         N, nx, nps, npair = self.N, 12, self.n_points, self.nu_pair
         dt = c.dt
         yaw = float(x_ref[0, 2])
         Rz = rot_z(yaw)
-        I_W_inv = Rz @ np.linalg.inv(self.inertia_B) @ Rz.T
-        A = np.zeros((nx, nx))
-        A[0:3, 6:9] = Rz.T
-        A[3:6, 9:12] = np.eye(3)
-        Adt = A * dt
-        # one variable block per (step, foot in contact)
-        pairs = [(k, f) for k in range(N) for f in (0, 1) if contacts[k, f]]
-        if len(pairs) > self.max_pairs:   # more contacts than planned for: keep the loaded ones
-            pairs = sorted(pairs, key=lambda kf: -nominal_load[kf])[: self.max_pairs]
-            pairs.sort()
-        Bp = np.zeros((len(pairs), nx, npair))
-        for j, (k, f) in enumerate(pairs):
-            pc = x_ref[k, 3:6]
-            for i in range(nps):
-                r = points[k, f, i] - pc
-                Bc = np.zeros((nx, 3))
-                Bc[6:9] = I_W_inv @ skew(r)
-                Bc[9:12] = np.eye(3) / self.mass
-                Bp[j, :, 3 * i:3 * i + 3] = Bc * dt + A @ Bc * (0.5 * dt * dt)
-        Ep = np.einsum("ij,pjl->pil", Adt, Bp)        # (A dt) B_d of each pair
-        cvec = np.zeros(nx)
-        cvec[11] = -self.gravity
-        cd = cvec * dt + A @ cvec * (0.5 * dt * dt)
-        Acd = Adt @ cd
-        Gam = np.zeros((N * nx, self.nu))
-        free = np.zeros(N * nx)
-        for k in range(1, N + 1):
-            free[(k - 1) * nx:k * nx] = x0 + k * (Adt @ x0) + k * cd + 0.5 * k * (k - 1) * Acd
-        for j, (kj, _) in enumerate(pairs):
-            cols = slice(j * npair, (j + 1) * npair)
-            for k in range(kj + 1, N + 1):
-                Gam[(k - 1) * nx:k * nx, cols] = Bp[j] + (k - 1 - kj) * Ep[j]
+        RzT = Rz.T
+        I_W_inv = Rz @ w.inertia_inv_B @ RzT
+        # one variable block per (step, foot in contact), in (step, foot) order
+        ks, fs = np.nonzero(contacts)
+        if len(ks) > self.max_pairs:   # more contacts than planned for: keep the loaded ones
+            keep = np.sort(np.argsort(-nominal_load[ks, fs], kind="stable")[: self.max_pairs])
+            ks, fs = ks[keep], fs[keep]
+        P = len(ks)
+        na = P * npair                 # active variables
+        # discrete input matrix of each pair, B_d = B dt + A B dt²/2 (A: Θ̇ ← R_zᵀω, ṗ ← v):
+        # rows ω̇ = I_W⁻¹ [r]×, v̇ = I/m; rows Θ, p get R_zᵀ and I times those (dt²/2)
+        r = points[ks, fs] - x_ref[ks, None, 3:6]                   # (P, nps, 3) levers
+        IS = np.einsum("ab,pibc->piac", I_W_inv, skew_rows(r))      # I_W⁻¹ [r]×
+        h2 = 0.5 * dt * dt
+        Bp = np.zeros((P, nx, nps, 3))
+        Bp[:, 0:3] = np.einsum("ab,pibc->paic", RzT, IS) * h2
+        Bp[:, 3:6] = (np.eye(3) / self.mass * h2)[None, :, None, :]
+        Bp[:, 6:9] = IS.transpose(0, 2, 1, 3) * dt
+        Bp[:, 9:12] = (np.eye(3) / self.mass * dt)[None, :, None, :]
+        Bp = Bp.reshape(P, nx, npair)
+        # (A dt) B_d: only rows Θ (R_zᵀ dt · rows ω) and p (dt · rows v)
+        Ep = np.zeros((P, nx, npair))
+        Ep[:, 0:3] = np.einsum("ab,pbl->pal", RzT * dt, Bp[:, 6:9])
+        Ep[:, 3:6] = Bp[:, 9:12] * dt
+        # free response: A_d^k = I + k A dt (A² = 0), gravity drift c_d
+        Adt_x0 = np.zeros(nx)
+        Adt_x0[0:3] = (RzT * dt) @ x0[6:9]
+        Adt_x0[3:6] = dt * x0[9:12]
+        cd = np.zeros(nx)
+        cd[11] = -self.gravity * dt
+        cd[5] = -self.gravity * h2
+        Acd = np.zeros(nx)
+        Acd[5] = dt * cd[11]
+        ksteps = w.steps
+        free = (x0 + ksteps * Adt_x0 + ksteps * cd + 0.5 * ksteps * (ksteps - 1) * Acd).ravel()
+        # condensed input map of the active pairs: step k (1…N) after pair j's step k_j
+        # sees B_j + (k − 1 − k_j) E_j (A_d^m B_j with A_d^m = I + m A dt); zero before
+        m = ksteps - 1.0 - ks[None, :]                                # (N, P)
+        G4 = (Bp.transpose(1, 0, 2)[None] + m[:, None, :, None] * Ep.transpose(1, 0, 2)[None])
+        G4 = np.where((m >= 0.0)[:, None, :, None], G4, 0.0)
+        Gam = G4.reshape(N * nx, na)
         err = free - self._wrap_reference(x_ref, x0).ravel()
-        q = np.tile(self._q_diag(), N)
-        QG = Gam * q[:, None]
-        H = Gam.T @ QG
-        g = QG.T @ err
-        H[np.diag_indices_from(H)] += c.weight_force
-        if c.weight_sinkage > 0.0 and self.ground.granular:
-            for j, (k, f) in enumerate(pairs):
-                z0 = self.ground.sinkage(nominal_load[k, f])
-                a = self.ground.sinkage_slope(nominal_load[k, f])
-                F0 = nominal_load[k, f]
-                # (z0 + a (F_z − F0))², F_z = Σ of the foot's points
-                jz = [j * npair + 3 * i + 2 for i in range(nps)]
-                H[np.ix_(jz, jz)] += 2.0 * c.weight_sinkage * a * a
-                g[jz] += 2.0 * c.weight_sinkage * a * (z0 - a * F0)
-        H = 0.5 * (H + H.T)
+        QG = Gam * w.q_rep[:, None]
+        H, g = w.H, w.g
+        H.fill(0.0)
+        g.fill(0.0)
+        H[:na, :na] = Gam.T @ QG
+        g[:na] = QG.T @ err
+        H[np.arange(self.nu), np.arange(self.nu)] += c.weight_force
+        if c.weight_sinkage > 0.0 and self.ground.granular and P:
+            F0 = nominal_load[ks, fs]
+            z0 = np.array([self.ground.sinkage(f) for f in F0])
+            a = np.array([self.ground.sinkage_slope(f) for f in F0])
+            # (z0 + a (F_z − F0))², F_z = Σ of the foot's points
+            jz = (np.arange(P)[:, None] * npair + 3 * np.arange(nps)[None, :] + 2)
+            H[jz[:, :, None], jz[:, None, :]] += (2.0 * c.weight_sinkage * a * a)[:, None, None]
+            g[jz] += (2.0 * c.weight_sinkage * a * (z0 - a * F0))[:, None]
+        H += H.T
+        H *= 0.5
         # constraints: the polytope's cone rows (h = 0) on each contact point (a point's
         # friction / shear is bounded by its own normal force: no free moments), its
         # capacity rows (h > 0) on the foot's total force
         poly = self.ground.polytope
-        cone = poly.G[poly.cone_rows] @ Rz.T
-        capr = poly.G[poly.capacity_rows] @ Rz.T
+        cone = w.cone @ RzT
+        capr = w.capacity_rows @ RzT
         nc = cone.shape[0]
-        C = np.zeros((self.n_in, self.nu))
-        u = np.zeros(self.n_in)
-        lb = np.zeros(self.nu)
-        ub = np.zeros(self.nu)
-        rows_pp = self.rows_per_pair
-        for j, (k, f) in enumerate(pairs):
-            share = 1.0
-            if capacity is not None:
-                share = min(max(capacity[k, f] / poly.f_max, 0.0), 1.0)
-            r0 = j * rows_pp
-            for i in range(nps):
-                col = j * npair + 3 * i
-                C[r0 + i * nc: r0 + (i + 1) * nc, col:col + 3] = cone
-                C[r0 + nps * nc: r0 + rows_pp, col:col + 3] = capr
-                lb[col:col + 2] = -BIG
-                ub[col:col + 2] = BIG
-                ub[col + 2] = poly.f_max * share / nps
-            u[r0 + nps * nc: r0 + rows_pp] = poly.h[poly.capacity_rows] * share
-        l = np.full(self.n_in, -BIG)
+        block = np.zeros((self.rows_per_pair, npair))
+        for i in range(nps):
+            block[i * nc:(i + 1) * nc, 3 * i:3 * i + 3] = cone
+            block[nps * nc:, 3 * i:3 * i + 3] = capr
+        diag = np.arange(self.max_pairs)
+        w.C4[diag[:P], :, diag[:P], :] = block
+        w.C4[diag[P:], :, diag[P:], :] = 0.0
+        if capacity is not None:
+            share = np.minimum(np.maximum(capacity[ks, fs] / poly.f_max, 0.0), 1.0)
+        else:
+            share = np.ones(P)
+        u2 = w.u.reshape(self.max_pairs, self.rows_per_pair)
+        u2.fill(0.0)
+        u2[:P, nps * nc:] = w.h_capacity[None, :] * share[:, None]
+        lb3 = w.lb.reshape(self.max_pairs, nps, 3)
+        ub3 = w.ub.reshape(self.max_pairs, nps, 3)
+        lb3.fill(0.0)
+        ub3.fill(0.0)
+        lb3[:P, :, :2] = -BIG
+        ub3[:P, :, :2] = BIG
+        ub3[:P, :, 2] = (poly.f_max * share / nps)[:, None]
         build_ms = (time.perf_counter() - t0) * 1e3
-        sol = data.solver.solve(QPProblem(H, g, None, None, C, l, u, lb, ub))
+        sol = data.solver.solve(QPProblem(H, g, None, None, w.C, w.l, w.u, w.lb, w.ub))
         data.solves += 1
         fallback = ""
         if sol.status.ok:
             U = sol.x
         else:
             data.failures += 1
+            pairs = list(zip(ks.tolist(), fs.tolist()))
             U, fallback = self._fallback(data, t, pairs, nominal_load)
         forces = np.zeros((N, 2, nps, 3))
-        for j, (k, f) in enumerate(pairs):
-            forces[k, f] = U[j * npair:(j + 1) * npair].reshape(nps, 3)
-        states = (free + Gam @ U).reshape(N, nx)
+        forces[ks, fs] = U[:na].reshape(P, nps, 3)
+        states = (free + Gam @ U[:na]).reshape(N, nx)
         sink = self._predicted_sinkage(forces, contacts)
-        plan = MPCPlan(t, forces, states, contacts.copy(), sink, sol.status, sol.solve_ms,
-                       build_ms, fallback)
+        plan = MPCPlan(t, forces, states, np.array(contacts, copy=True), sink, sol.status,
+                       sol.solve_ms, build_ms, fallback)
         data.last = plan
         return plan
 
@@ -243,16 +299,26 @@ class CentroidalMPC:
         return out
 
     def _predicted_sinkage(self, forces: np.ndarray, contacts: np.ndarray) -> np.ndarray:
+        """Plastic sinkage of each foot at each step [m]: ``max_{j≤k} Z(F_z,j)`` over the
+        current stance (reset in swing). Z is non-decreasing, so the deepest point is
+        ``Z(max_{j≤k} F_z,j)``: one Z evaluation per distinct running maximum."""
         N = forces.shape[0]
         out = np.zeros((N, 2))
+        if not self.ground.granular:
+            return out
+        fz = forces[..., 2].sum(axis=2).tolist()        # (N, 2) foot normal forces [N]
+        cont = np.asarray(contacts, dtype=bool).tolist()
+        sinkage = self.ground.sinkage
         for f in (0, 1):
-            deepest = 0.0
+            peak, depth = None, 0.0
             for k in range(N):
-                if not contacts[k, f]:
-                    deepest = 0.0
+                if not cont[k][f]:
+                    peak, depth = None, 0.0
                     continue
-                deepest = max(deepest, self.ground.sinkage(float(forces[k, f, :, 2].sum())))
-                out[k, f] = deepest
+                if peak is None or fz[k][f] > peak:
+                    peak = fz[k][f]
+                    depth = max(depth, sinkage(peak))
+                out[k, f] = depth
         return out
 
     def _fallback(self, data: MPCData, t: float, pairs: list,

@@ -19,6 +19,7 @@ it up and shorten the stance leg.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -27,18 +28,13 @@ import pinocchio as pin
 
 from ..config import WBCConfig
 from ..robot.model import SIDES, Biped
-from ..rotations import matrix_from_quat_xyzw, rot_z, skew
+from ..rotations import cross_rows, matrix_from_quat_xyzw, skew_rows
 from .contact_model import GroundModel
 from .solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_ACCELERATION = pin.KinematicLevel.ACCELERATION
 BIG = 1e20
-
-
-def _cross(a, b) -> np.ndarray:
-    """Cross product of two 3-vectors (np.cross costs ~20 µs of axis handling)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                     a[0] * b[1] - a[1] * b[0]])
 
 
 @dataclass
@@ -70,6 +66,33 @@ class FootPoints:
 
 
 @dataclass
+class WBCWork:
+    """Preallocated QP buffers of the WBC (fixed size: nv + 2·n_points·3 variables) and
+    the config-only terms, built once per controller and refilled in place each tick
+    (ProxSuite copies them into its model)."""
+
+    H: np.ndarray               # (n, n)
+    g: np.ndarray               # (n,)
+    A: np.ndarray               # (6, n) floating-base rows
+    b: np.ndarray               # (6,)
+    C: np.ndarray               # (n_in, n)
+    C_poly: np.ndarray          # view of C's polytope rows: (points, rows, points, 3)
+    l: np.ndarray               # (n_in,)
+    u: np.ndarray               # (n_in,)
+    lb: np.ndarray              # (n,)
+    ub: np.ndarray              # (n,)
+    J: np.ndarray               # (max task rows, nv) stacked task Jacobians
+    e: np.ndarray               # (max task rows,) stacked drift − desired acceleration
+    w: np.ndarray               # (max task rows,) task weights
+    sw: np.ndarray              # (3,) √ of the orientation weights
+    h_point: np.ndarray         # (rows,) polytope bounds for one contact point [N]
+    f_max_point: float          # largest normal force of one contact point [N]
+    diag_nv: np.ndarray         # indices of the q̈ block's diagonal
+    diag_f: np.ndarray          # indices of the force block's diagonal (in H)
+    lower: tuple                # indices of the strict lower triangle of M
+
+
+@dataclass
 class WBCData:
     solver: ProxQPSolver
     pin: pin.Data
@@ -80,6 +103,7 @@ class WBCData:
     last_ms: float = 0.0
     keep_residuals: bool = False     # store each task's residual (debugging)
     extra: dict = field(default_factory=dict)
+    work: WBCWork | None = None
 
 
 @dataclass(frozen=True)
@@ -110,7 +134,22 @@ class WholeBodyController:
 
     def new_data(self) -> WBCData:
         return WBCData(ProxQPSolver(self.n, 6, self.n_in, box=True, eps_abs=1e-5, max_iter=100),
-                       self.biped.model.createData())
+                       self.biped.model.createData(), work=self._new_work())
+
+    def _new_work(self) -> WBCWork:
+        n, nv, n_in, nps = self.n, self.nv, self.n_in, self.n_points
+        poly = self.ground.polytope.scaled(1.0 / nps)
+        nr = poly.G.shape[0]
+        rows = 3 + 3 + 2 * nps * 3          # orientation, CoM, both feet's contact points
+        C = np.zeros((n_in, n))
+        return WBCWork(
+            H=np.zeros((n, n)), g=np.zeros(n), A=np.zeros((6, n)), b=np.zeros(6), C=C,
+            C_poly=C[6:, nv:].reshape(2 * nps, nr, 2 * nps, 3),
+            l=np.full(n_in, -BIG), u=np.zeros(n_in), lb=np.full(n, -BIG), ub=np.full(n, BIG),
+            J=np.zeros((rows, nv)), e=np.zeros(rows), w=np.zeros(rows),
+            sw=np.sqrt(np.asarray(self.config.w_orientation, dtype=float)),
+            h_point=poly.h, f_max_point=poly.f_max,
+            diag_nv=np.arange(nv), diag_f=np.arange(nv, n), lower=np.tril_indices(nv, -1))
 
     # ------------------------------------------------------------------ the tick
     def solve(self, data: WBCData, q: np.ndarray, v: np.ndarray, ref: WBCReference,
@@ -119,143 +158,157 @@ class WholeBodyController:
         c = self.config
         b = self.biped
         model, pd = b.model, data.pin
-        nv, nf, nps = self.nv, self.nf, self.n_points
-        pin.computeJointJacobians(model, pd, q)
-        pin.forwardKinematics(model, pd, q, v, np.zeros(nv))
+        w = data.work
+        if w is None:
+            w = data.work = self._new_work()
+        nv, nps = self.nv, self.n_points
+        # one pass: M (CRBA), h (RNEA at q̈ = 0), joint Jacobians, CoM and its Jacobian,
+        # body velocities and drift accelerations (q̈ = 0); then the CoM drift from those
+        pin.computeAllTerms(model, pd, q, v)
         pin.updateFramePlacements(model, pd)
-        M = pin.crba(model, pd, q)
-        M = np.triu(M) + np.triu(M, 1).T
-        h = pin.nonLinearEffects(model, pd, q, v)
-        Jc = pin.jacobianCenterOfMass(model, pd, q, False)
-        pin.centerOfMass(model, pd, q, v, np.zeros(nv))
-        com, vcom, acom_drift = pd.com[0].copy(), pd.vcom[0].copy(), pd.acom[0].copy()
+        pin.centerOfMass(model, pd, _ACCELERATION, False)
+        M = pd.M.copy()
+        M[w.lower] = M.T[w.lower]      # Pinocchio's CRBA fills the upper triangle
+        h = pd.nle
+        com, vcom, acom_drift = pd.com[0], pd.vcom[0], pd.acom[0]
 
-        Hq = np.zeros((nv, nv))
-        gq = np.zeros(nv)
-        tasks = []
-
-        def add_task(J, drift, a_des, w, name=""):
-            nonlocal Hq, gq
-            e = drift - a_des
-            Hq += w * (J.T @ J)
-            gq += w * (J.T @ e)
-            tasks.append((name, J, e, w))
-
-        # trunk orientation: base angular acceleration (trunk frame) = q̈[3:6]
+        J, e, wt = w.J, w.e, w.w
+        names = []              # (task name, first row, last row) for keep_residuals
+        # trunk orientation: base angular acceleration (trunk frame) = q̈[3:6]; per-axis
+        # weights in the trunk frame (roll, pitch, yaw) as √w on the rows
         R = matrix_from_quat_xyzw(q[3:7])
         err_W = pin.log3(ref.R_trunk @ R.T)
         omega_W = R @ v[3:6]
         alpha_W = c.kp_orientation * err_W + c.kd_orientation * (ref.omega - omega_W)
-        # per-axis weights in the trunk frame (roll, pitch, yaw)
-        J_ang = np.zeros((3, nv))
-        J_ang[:, 3:6] = np.eye(3)
-        sw = np.sqrt(np.asarray(c.w_orientation, dtype=float))
-        add_task(sw[:, None] * J_ang, np.zeros(3), sw * (R.T @ alpha_W), 1.0, "orientation")
+        sw = w.sw
+        J[0:3] = 0.0
+        J[0, 3], J[1, 4], J[2, 5] = sw
+        e[0:3] = 0.0 - sw * (R.T @ alpha_W)
+        wt[0:3] = 1.0
+        names.append(("orientation", 0, 3))
         # CoM
         a_com = ref.com_acc + c.kp_com * (ref.com - com) + c.kd_com * (ref.com_vel - vcom)
-        add_task(Jc, acom_drift, a_com, c.w_com, "com")
-        # feet: swing tracking or stance contact points
-        Jpts = []
+        J[3:6] = pd.Jcom
+        e[3:6] = acom_drift - a_com
+        wt[3:6] = c.w_com
+        names.append(("com", 3, 6))
+        # feet: frame Jacobians, velocities and drift accelerations, both feet at once
+        fids = (b.foot_frame[SIDES[0]], b.foot_frame[SIDES[1]])
+        J6 = np.stack([pin.getFrameJacobian(model, pd, fid, _LWA) for fid in fids])  # (2,6,nv)
+        acc = np.stack([pin.getFrameClassicalAcceleration(model, pd, fid, _LWA).vector
+                        for fid in fids])                                           # (2, 6)
+        vel = np.stack([pin.getFrameVelocity(model, pd, fid, _LWA).vector for fid in fids])
+        a_o, alpha, v_o, w_f = acc[:, None, :3], acc[:, None, 3:], vel[:, None, :3], vel[:, None, 3:]
+        r = np.stack([feet[0].offsets, feet[1].offsets])                            # (2,nps,3)
+        # contact point Jacobians J_o − [r]× J_ω, drifts a_o + α × r + ω × (ω × r)
+        Jp = J6[:, None, :3, :] - np.einsum("fpab,fbk->fpak", skew_rows(r), J6[:, 3:, :])
+        wr = cross_rows(w_f, r)
+        drift = a_o + cross_rows(alpha, r) + cross_rows(w_f, wr)                    # (2,nps,3)
+        vp = v_o + wr
+        row = 6
+        granular = self.ground.granular
         for i, side in enumerate(SIDES):
-            fid = b.foot_frame[side]
-            J6 = pin.getFrameJacobian(model, pd, fid, _LWA)
-            acc = pin.getFrameClassicalAcceleration(model, pd, fid, _LWA)
-            vel = pin.getFrameVelocity(model, pd, fid, _LWA)
-            a_o, alpha = acc.linear, acc.angular
-            w_f = vel.angular
-            pts = []
-            for r in feet[i].offsets:
-                Jp = J6[:3] - skew(r) @ J6[3:]
-                wr = _cross(w_f, r)
-                drift = a_o + _cross(alpha, r) + _cross(w_f, wr)
-                vp = vel.linear + wr
-                pts.append((Jp, drift, vp))
-            Jpts.append(pts)
             if ref.stance[i]:
-                for Jp, drift, vp in pts:
-                    if self.ground.granular:
-                        # the sand, not the controller, decides how the foot moves: the
-                        # WBC predicts the foot's acceleration (the change of the planned
-                        # sinkage rate) and never feeds back on the foot's velocity, which
-                        # would pull a sinking foot up and collapse the stance leg
-                        a_des = -self.contact_damping * vp
-                        a_des[2] -= ref.sink_accel[i]
-                        add_task(Jp, drift, a_des, c.w_contact, f"contact_{side}")
-                    else:
-                        add_task(Jp, drift, -40.0 * vp, c.w_contact, f"contact_{side}")
+                if granular:
+                    # the sand, not the controller, decides how the foot moves: the WBC
+                    # predicts the foot's acceleration (the change of the planned sinkage
+                    # rate) and never feeds back on the foot's velocity, which would pull a
+                    # sinking foot up and collapse the stance leg
+                    a_des = -self.contact_damping * vp[i]
+                    a_des[:, 2] -= ref.sink_accel[i]
+                else:
+                    a_des = -40.0 * vp[i]
+                k = nps * 3
+                J[row:row + k] = Jp[i].reshape(k, nv)
+                e[row:row + k] = (drift[i] - a_des).ravel()
+                wt[row:row + k] = c.w_contact
+                names.append((f"contact_{side}", row + k - 3, row + k))
+                row += k
             else:
-                p_o = pd.oMf[fid].translation
+                p_o = pd.oMf[fids[i]].translation
                 a_des = (ref.swing_acc[i] + self.swing_kp * (ref.swing_pos[i] - p_o)
-                         + self.swing_kd * (ref.swing_vel[i] - vel.linear))
-                add_task(J6[:3], a_o, a_des, c.w_swing, f"swing_{side}")
-        Hq[np.diag_indices_from(Hq)] += c.w_regularisation
-        # assemble the QP
-        H = np.zeros((self.n, self.n))
-        g = np.zeros(self.n)
+                         + self.swing_kd * (ref.swing_vel[i] - v_o[i, 0]))
+                J[row:row + 3] = J6[i, :3]
+                e[row:row + 3] = a_o[i, 0] - a_des
+                wt[row:row + 3] = c.w_swing
+                names.append((f"swing_{side}", row, row + 3))
+                row += 3
+        Jt, et, wt_ = J[:row], e[:row], wt[:row]
+        WJ = Jt * wt_[:, None]
+        # assemble the QP in the preallocated buffers
+        H, g = w.H, w.g
+        Hq = Jt.T @ WJ
+        Hq[w.diag_nv, w.diag_nv] += c.w_regularisation
         H[:nv, :nv] = Hq
-        g[:nv] = gq
+        H[:nv, :nv] += Hq.T
+        H[:nv, :nv] *= 0.5
+        g[:nv] = WJ.T @ et
         f_ref = ref.forces.reshape(-1)
         w_force = c.w_force if ref.force_weight is None else ref.force_weight
-        H[nv:, nv:] += w_force * np.eye(nf)
-        g[nv:] -= w_force * f_ref
-        # contact Jacobian transpose map: Σ Jᵀ f
-        JT = np.zeros((nv, nf))
-        for i in range(2):
-            for k in range(nps):
-                col = (i * nps + k) * 3
-                JT[:, col:col + 3] = Jpts[i][k][0].T
-        A = np.hstack([M[:6], -JT[:6]])
-        bvec = -h[:6]
+        H[w.diag_f, w.diag_f] = w_force
+        g[nv:] = -w_force * f_ref
+        # contact Jacobian transpose map: Σ Jᵀ f (columns point-major, axis-minor)
+        JT = Jp.reshape(-1, nv).T                                                  # (nv, nf)
+        w.A[:, :nv] = M[:6]
+        w.A[:, nv:] = -JT[:6]
+        w.b[:] = -h[:6]
         tau_max = b.torque_limits
-        Ct = np.hstack([M[6:], -JT[6:]])
-        poly = self.ground.polytope.scaled(1.0 / nps)
-        nr = poly.G.shape[0]
-        C = np.zeros((self.n_in, self.n))
-        l = np.full(self.n_in, -BIG)
-        u = np.zeros(self.n_in)
-        C[:6] = Ct
-        l[:6] = -tau_max - h[6:]
-        u[:6] = tau_max - h[6:]
-        lb = np.full(self.n, -BIG)
-        ub = np.full(self.n, BIG)
-        row = 6
-        for i, side in enumerate(SIDES):
-            yaw = float(np.arctan2(pd.oMf[b.foot_frame[side]].rotation[1, 0],
-                                   pd.oMf[b.foot_frame[side]].rotation[0, 0]))
-            Gw = poly.G @ rot_z(yaw).T
-            share = 1.0
-            if ref.force_cap is not None:
-                share = min(max(ref.force_cap[i] / self.ground.polytope.f_max, 0.0), 1.0)
-            for k in range(nps):
-                col = nv + (i * nps + k) * 3
-                C[row:row + nr, col:col + 3] = Gw
-                u[row:row + nr] = poly.h * share
-                row += nr
-                if ref.stance[i]:
-                    lb[col + 2] = 0.0
-                    ub[col + 2] = poly.f_max * share
-                else:
-                    lb[col:col + 3] = 0.0
-                    ub[col:col + 3] = 0.0
-        H = 0.5 * (H + H.T)
+        C, l, u, lb, ub = w.C, w.l, w.u, w.lb, w.ub
+        C[:6, :nv] = M[6:]
+        C[:6, nv:] = -JT[6:]
+        h_a = h[6:]
+        l[:6] = -tau_max - h_a
+        u[:6] = tau_max - h_a
+        # force polytope of each contact point, turned to its foot's heading
+        cy, sy = np.empty(2), np.empty(2)
+        for i, fid in enumerate(fids):
+            rot = pd.oMf[fid].rotation
+            yaw = math.atan2(rot[1, 0], rot[0, 0])
+            cy[i], sy[i] = math.cos(yaw), math.sin(yaw)
+        G = self.ground.polytope.G
+        # G R_z(ψ)ᵀ: columns (G_x c − G_y s, G_x s + G_y c, G_z)
+        Gw = np.empty((2,) + G.shape)
+        Gw[:, :, 0] = G[None, :, 0] * cy[:, None] + G[None, :, 1] * (-sy[:, None])
+        Gw[:, :, 1] = G[None, :, 0] * sy[:, None] + G[None, :, 1] * cy[:, None]
+        Gw[:, :, 2] = G[None, :, 2]
+        pts = np.arange(2 * nps)
+        w.C_poly[pts, :, pts, :] = np.repeat(Gw, nps, axis=0)
+        if ref.force_cap is not None:
+            share = np.minimum(np.maximum(np.asarray(ref.force_cap, dtype=float)
+                                          / self.ground.polytope.f_max, 0.0), 1.0)
+        else:
+            share = np.ones(2)
+        nr = G.shape[0]
+        u[6:].reshape(2, nps, nr)[:] = w.h_point[None, None, :] * share[:, None, None]
+        lb3, ub3 = lb[nv:].reshape(2, nps, 3), ub[nv:].reshape(2, nps, 3)
+        for i in range(2):
+            if ref.stance[i]:
+                lb3[i, :, :2] = -BIG
+                ub3[i, :, :2] = BIG
+                lb3[i, :, 2] = 0.0
+                ub3[i, :, 2] = w.f_max_point * share[i]
+            else:
+                lb3[i] = 0.0
+                ub3[i] = 0.0
         t0 = time.perf_counter()
-        sol = data.solver.solve(QPProblem(H, g, A, bvec, C, l, u, lb, ub))
+        sol = data.solver.solve(QPProblem(H, g, w.A, w.b, C, l, u, lb, ub))
         data.last_ms = (time.perf_counter() - t0) * 1e3
         data.solves += 1
         data.last_status = sol.status
         if sol.status.ok:
             x = sol.x
             if data.keep_residuals:
-                data.extra["task_residuals"] = {n: J @ x[:nv] + e for n, J, e, w in tasks}
-            tau = M[6:] @ x[:nv] + h[6:] - JT[6:] @ x[nv:]
+                res = Jt @ x[:nv] + et
+                data.extra["task_residuals"] = {n: res[r0:r1] for n, r0, r1 in names}
+            tau = M[6:] @ x[:nv] + h_a - JT[6:] @ x[nv:]
         else:
             data.failures += 1
             # fall back: the previous torques if any, else gravity/force feed-forward
             if data.last_tau is not None:
                 tau = data.last_tau.copy()
             else:
-                tau = h[6:] - JT[6:] @ f_ref
-        tau = np.clip(tau, -tau_max, tau_max)
+                tau = h_a - JT[6:] @ f_ref
+        tau = np.minimum(np.maximum(tau, -tau_max), tau_max)
         data.last_tau = tau
         return tau[b.idx_v - 6]          # v order → actuator order
 

@@ -14,6 +14,7 @@ tick and warm-starts from the previous result (maintainers' advice, proxsuite is
 from __future__ import annotations
 
 import enum
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -140,6 +141,19 @@ class QPProblem:
         return worst
 
 
+def _finite(p: QPProblem) -> bool:
+    """Whether the QP data can be handed to ProxSuite: H, g, A, b, C finite, l and u free of
+    NaN (±inf allowed: a free side). A sum is non-finite iff some term is non-finite (or
+    it overflows, which these magnitudes never do): one reduction per array, not two."""
+    for arr in (p.H, p.g, p.A, p.b, p.C):
+        if arr is not None and not math.isfinite(float(arr.sum())):
+            return False
+    for arr in (p.l, p.u):
+        if arr is not None and np.isnan(arr).any():
+            return False
+    return True
+
+
 @dataclass
 class QPSolution:
     x: np.ndarray
@@ -170,20 +184,34 @@ class ProxQPSolver:
     _qp: object = field(default=None, repr=False)
     _initialised: bool = field(default=False, repr=False)
     _warm: bool = field(default=False, repr=False)
+    _status_table: dict = field(default_factory=dict, repr=False)
+    _warm_guess: object = field(default=None, repr=False)
+    _cold_guess: object = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
-        self._px = load_proxsuite()
+        px = self._px = load_proxsuite()
+        out = px.proxqp.QPSolverOutput
+        # ProxSuite outcome → ours, looked up once (nanobind attribute access is slow)
+        self._status_table = {out.PROXQP_SOLVED: QPStatus.SOLVED,
+                              out.PROXQP_MAX_ITER_REACHED: QPStatus.MAX_ITER,
+                              out.PROXQP_PRIMAL_INFEASIBLE: QPStatus.PRIMAL_INFEASIBLE,
+                              out.PROXQP_DUAL_INFEASIBLE: QPStatus.DUAL_INFEASIBLE}
+        self._warm_guess = px.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+        self._cold_guess = px.proxqp.InitialGuess.NO_INITIAL_GUESS
         self._reset()
 
     def solve(self, p: QPProblem) -> QPSolution:
-        """Solve ``p`` (same dimensions every call); never raises for a numerical failure."""
-        if (p.n, p.n_eq, p.n_in) != (self.n, self.n_eq, self.n_in):
+        """Solve ``p`` (same dimensions every call); never raises for a numerical failure.
+
+        The arrays of ``p`` are copied into ProxSuite's model, so a caller may refill the
+        same buffers for its next problem.
+        """
+        if (p.H.shape[0], 0 if p.A is None else p.A.shape[0],
+                0 if p.C is None else p.C.shape[0]) != (self.n, self.n_eq, self.n_in):
             raise SolverError(f"QP size {(p.n, p.n_eq, p.n_in)} differs from the solver's "
                               f"{(self.n, self.n_eq, self.n_in)}")
-        for name in ("H", "g", "A", "b", "C", "l", "u"):
-            arr = getattr(p, name)
-            if arr is not None and not np.all(np.isfinite(arr) | (np.isinf(arr) & (name in "lu"))):
-                return QPSolution(np.zeros(self.n), QPStatus.NON_FINITE)
+        if not _finite(p):
+            return QPSolution(np.zeros(self.n), QPStatus.NON_FINITE)
         args = [p.H, p.g, p.A, p.b, p.C, p.l, p.u]
         if self.box:
             args += [p.lb, p.ub]
@@ -203,8 +231,7 @@ class ProxQPSolver:
             self._reset()
         elif not self._warm:
             # safe only now (see module docstring)
-            self._qp.settings.initial_guess = \
-                self._px.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+            self._qp.settings.initial_guess = self._warm_guess
             self._warm = True
         return sol
 
@@ -220,20 +247,13 @@ class ProxQPSolver:
             self._reset()
             return QPSolution(np.zeros(self.n), QPStatus.FAILED)
         r = self._qp.results
-        status = self._status(r.info.status)
+        info = r.info
+        status = self._status_table.get(info.status, QPStatus.FAILED)
         x = np.array(r.x)
-        if not np.isfinite(x).all():
+        if not math.isfinite(float(x.sum())):
             status = QPStatus.NON_FINITE
-        return QPSolution(x, status, int(r.info.iter), 0.0, float(r.info.objValue),
+        return QPSolution(x, status, int(info.iter), 0.0, float(info.objValue),
                           np.array(r.y), np.array(r.z))
-
-    def _status(self, s) -> QPStatus:
-        out = self._px.proxqp.QPSolverOutput
-        table = {out.PROXQP_SOLVED: QPStatus.SOLVED,
-                 out.PROXQP_MAX_ITER_REACHED: QPStatus.MAX_ITER,
-                 out.PROXQP_PRIMAL_INFEASIBLE: QPStatus.PRIMAL_INFEASIBLE,
-                 out.PROXQP_DUAL_INFEASIBLE: QPStatus.DUAL_INFEASIBLE}
-        return table.get(s, QPStatus.FAILED)
 
     def _reset(self) -> None:
         """A fresh ProxSuite object, cold-started (after a failure a bad previous result is
@@ -245,7 +265,7 @@ class ProxQPSolver:
         s.eps_rel = 0.0
         s.max_iter = self.max_iter
         s.verbose = False
-        s.initial_guess = px.proxqp.InitialGuess.NO_INITIAL_GUESS
+        s.initial_guess = self._cold_guess
         self._initialised = False
         self._warm = False
 

@@ -9,11 +9,9 @@ from __future__ import annotations
 
 import os
 import time as _time
-from concurrent.futures import ProcessPoolExecutor
 from typing import Any, Callable, Mapping, Sequence
 
-from threadpoolctl import threadpool_limits
-
+from ...parallel import map_tasks
 from ..prepare import StanceWindow
 from .granular import replay_granular
 from .model import ReplayModel, Variant
@@ -26,10 +24,6 @@ REPLAYERS: dict[str, Callable] = {"granular": replay_granular, "rigid": replay_r
 
 #: what the forked workers inherit (set just before the fork)
 _SHARED: dict = {}
-
-
-def _worker_init() -> None:
-    _SHARED["limits"] = threadpool_limits(limits=1)
 
 
 def _run_chunk(task: tuple) -> list:
@@ -55,7 +49,6 @@ class ReplayPool:
         self.windows = list(windows)
         n_cpu = os.cpu_count() or 1
         self.workers = max(1, min(n_cpu if workers is None else int(workers), len(self.windows)))
-        self._pool: ProcessPoolExecutor | None = None
         self.n_replays = 0
         self.replay_time_s = 0.0
 
@@ -66,9 +59,7 @@ class ReplayPool:
         self.close()
 
     def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown()
-            self._pool = None
+        """Nothing to release: each :meth:`run` uses a fresh pool (kept for ``with``)."""
 
     def run(self, variants: Mapping[Any, Variant], kind: str = "granular") -> dict:
         """``{variant key: [per-window output dict]}`` for every variant."""
@@ -88,11 +79,13 @@ class ReplayPool:
             chunks = [order[c::n_chunks] for c in range(n_chunks)]
             _SHARED.update(model=self.model, windows=self.windows, variants=variants)
             # a fresh pool per call: the workers inherit the current variants by fork
-            with ProcessPoolExecutor(max_workers=self.workers, initializer=_worker_init) as ex:
-                tasks = [(kind, k, ch) for k in variants for ch in chunks if ch]
-                for part in ex.map(_run_chunk, tasks):
-                    for vkey, i, res in part:
-                        results[vkey][i] = res
+            tasks = [(kind, k, ch) for k in variants for ch in chunks if ch]
+            run = map_tasks(_run_chunk, tasks, workers=self.workers, start_method="fork")
+            if run.interrupted:
+                raise KeyboardInterrupt
+            for part in run.results:
+                for vkey, i, res in part:
+                    results[vkey][i] = res
         self.n_replays += len(variants) * len(idx)
         self.replay_time_s += _time.perf_counter() - t0
         return results
