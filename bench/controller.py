@@ -8,12 +8,18 @@ log row per WBC tick kept in memory), so the real-time factor is what ``granular
 achieves before plots and HTML. ``*_solve_ms`` is the ProxSuite solve alone; ``*_tick_ms``
 adds building the QP in Python (the MPC's condensation, the WBC's Pinocchio terms).
 
-Where the time goes (cProfile, sand, 0.2 m/s): the WBC tick ≈ 45 % (Pinocchio terms and
-QP assembly in NumPy, ~0.7 ms), the plant ≈ 25 % (2000 steps of ~65 µs), logging ≈ 15 %
-(one PlantRecorder row per WBC tick), the MPC ≈ 10 % (40 ticks of ~2.5 ms). One BLAS
-thread: the matrices are tiny and threading costs more than it saves (MPC tick 16 → 2.4 ms).
+Where the time goes (cProfile, sand, 0.2 m/s; before the lean tick of issue 12): the WBC
+tick ≈ 45 % (Pinocchio terms and QP assembly in NumPy, ~0.7 ms), the plant ≈ 25 % (2000
+steps of ~65 µs), logging ≈ 15 % (one PlantRecorder row per WBC tick), the MPC ≈ 10 % (40
+ticks of ~2.5 ms). The lean tick builds both QPs in preallocated buffers without per-point
+Python loops (one ``computeAllTerms`` per WBC tick, the MPC's condensed matrices from
+broadcast blocks) and solves the MPC's QP with ProxSuite's primal-dual LDLT backend (half
+the warm-started iterations of the automatic choice); what is left is ProxSuite's solve
+(MPC) and NumPy's per-call overhead on 24×24 arrays (WBC). One BLAS thread: the matrices
+are tiny and threading costs more than it saves (MPC tick 16 → 2.4 ms).
 ``proxsuite_build`` names the ProxSuite binding in use: ``GRANULAR_MPC_PROXSUITE=generic``
 selects the bit-reproducible build (≈ 30 % slower MPC solves, docs/user-guide.md).
+Two revisions side by side: ``bench/compare_revisions.py``.
 """
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
 """A tiny velocity sweep: CoT against speed on sand and on rigid ground (paper Fig. 6d).
 
 Runs sim/velocity_sweep.yaml with two speeds in parallel (local process pool) and prints
-one table row per run and the CoT ratio sand/rigid per speed (Markdown tables). The full
+one table row per run (mean speed, CoT, mean peak sinkage per stance, fell) and the CoT
+ratio sand/rigid per speed (Markdown tables). The full
 sweep is ``granular-mpc sweep sim/velocity_sweep.yaml``.
 
     python examples/velocity_sweep.py
@@ -26,12 +27,14 @@ if __name__ == "__main__":     # the process pool re-imports this file (spawn)
     result = run_sweep(tasks, out, workers=2, progress=False)
     t = result.table
     print(f"{len(t)} runs, {seconds:g} s each; table: {result.csv}")
-    print("| terrain | speed [m/s] | mean speed [m/s] | CoT | fell |")
-    print("|---|---|---|---|---|")
+    print("| terrain | speed [m/s] | mean speed [m/s] | CoT | peak sinkage [mm] | fell |")
+    print("|---|---|---|---|---|---|")
     for r in t.itertuples(index=False):
         cot = "-" if r.cot != r.cot else f"{r.cot:.3f}"   # NaN → "-"
+        sink = ("-" if r.sinkage_peak_mm_mean != r.sinkage_peak_mm_mean
+                else f"{r.sinkage_peak_mm_mean:.2f}")
         print(f"| {r.terrain} | {r.commanded_speed_mps:.2f} | {r.mean_speed_mps:.3f} | {cot} "
-              f"| {'yes' if r.fell else 'no'} |")
+              f"| {sink} | {'yes' if r.fell else 'no'} |")
     print()
     print("| series | speed [m/s] | CoT / CoT_rigid |")
     print("|---|---|---|")

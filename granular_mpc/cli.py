@@ -9,19 +9,34 @@
     granular-mpc import SOURCE --mapping MAP.yaml --out DATA_DIR
     granular-mpc bench [--json DIR]
 
-Bad input (malformed YAML, unknown key, wrong type, a ``--set`` of a key that does not
-exist, a missing robot/terrain/scenario file, an output folder that cannot be written)
-prints **one** message naming the problem on stderr and exits non-zero, without a
-traceback unless ``--debug``.
+Bad input (malformed YAML, a key given twice, unknown key, wrong type, a ``--set`` of a
+key that does not exist, a missing robot/terrain/scenario file or data folder, a broken
+data set or robot description, a file that is not UTF-8, an effect file that cannot be
+imported, an output folder that cannot be written, is locked by another process or holds
+results that are not to be replaced) prints **one** message naming the file, key and value
+on stderr, without a traceback unless ``--debug``.
 
-Exit codes: 0 done (a run that fell is done: the fall is its result); 1 a run ended early
-(plant diverged, controller error) or an unexpected error; 2 bad input; 130 interrupted
-(Ctrl-C). See docs/user-guide.md.
+Exit codes, the same for every command:
+
+====  ==========================================================================
+0     done (a run that fell is done: the fall is its result)
+1     failed: a run ended early (plant diverged, controller error), a sweep with
+      failed runs, a failing bench script, or an internal error (a bug: please
+      report it with ``--debug``)
+2     bad input: configuration, command-line value, data set, model file,
+      environment variable, output folder
+130   interrupted by SIGINT (Ctrl-C); what finished is written
+143   interrupted by SIGTERM (``kill``, ``timeout``, a job scheduler); likewise
+====  ==========================================================================
+
+See docs/user-guide.md.
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
+import signal
 import subprocess
 import sys
 import traceback
@@ -30,9 +45,14 @@ from typing import Annotated, Any, Iterator, Optional
 
 import typer
 
-from .exceptions import ConfigError, DataFormatError, GranularMpcError, OutputError
+from .exceptions import (ConfigError, DataFormatError, GranularMpcError, Interrupted,
+                         ModelError, OutputError)
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_TERMINATED = 143
+"""Exit code after SIGTERM (128 + 15)."""
+#: errors that are the user's input, not a failure of the package: exit 2
+BAD_INPUT_ERRORS = (ConfigError, DataFormatError, OutputError, ModelError)
 
 app = typer.Typer(
     name="granular-mpc",
@@ -61,14 +81,19 @@ def _err(text: str) -> None:
 def _errors(debug: bool) -> Iterator[None]:
     """One clear message on stderr and a non-zero exit for every error; traceback only
     with ``--debug``."""
+    old_term = _sigterm_interrupts()
     try:
+        _check_environment()
         yield
     except typer.Exit:
         raise
+    except Interrupted as exc:
+        _err(str(exc))
+        raise typer.Exit(exc.exit_code) from None
     except KeyboardInterrupt:
         _err("interrupted")
         raise typer.Exit(EXIT_INTERRUPTED) from None
-    except (ConfigError, DataFormatError, OutputError) as exc:
+    except BAD_INPUT_ERRORS as exc:
         if debug:
             traceback.print_exc()
         _err(f"error: {exc}")
@@ -84,6 +109,41 @@ def _errors(debug: bool) -> Iterator[None]:
         _err(f"error: unexpected {type(exc).__name__}: {exc}"
              + ("" if debug else " (run again with --debug for the traceback)"))
         raise typer.Exit(EXIT_FAILED) from None
+    finally:
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
+
+
+def _raise_interrupted(signum, frame) -> None:
+    raise Interrupted(signum)
+
+
+def _sigterm_interrupts():
+    """SIGTERM raises :class:`Interrupted` (like Ctrl-C) while a command runs, so that
+    ``finally`` blocks run and the exit code is 143; returns the previous handler."""
+    try:
+        return signal.signal(signal.SIGTERM, _raise_interrupted)
+    except ValueError:       # not the main thread (e.g. a test runner)
+        return None
+
+
+def _check_environment() -> None:
+    """The environment variables the package reads, checked before any work.
+
+    Raises:
+        ConfigError: ``GRANULAR_MPC_PROXSUITE`` names no ProxSuite build.
+    """
+    from .control.solvers.proxqp import PROXSUITE_BUILDS
+
+    build = os.environ.get("GRANULAR_MPC_PROXSUITE")
+    if build is not None and build not in PROXSUITE_BUILDS:
+        raise ConfigError("not a ProxSuite build", key="GRANULAR_MPC_PROXSUITE (environment)",
+                          value=build, allowed=", ".join(PROXSUITE_BUILDS))
+
+
+def _exit_code_of(reason: str) -> int:
+    """130 or 143 for a run interrupted by SIGINT or SIGTERM."""
+    return EXIT_TERMINATED if "SIGTERM" in reason else EXIT_INTERRUPTED
 
 
 def _fmt(value: Any) -> str:
@@ -130,6 +190,7 @@ def run(
     out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Run folder (default runs/<scenario>-<time>).")] = None,
     view: Annotated[bool, typer.Option("--view", help="Live Meshcat view while the run goes (prints the URL).")] = False,
     html: Annotated[bool, typer.Option("--html", help="Also write DIR/animation.html (standalone page).")] = False,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a previous run in DIR (else refused).")] = False,
     quiet: QuietOpt = False,
     debug: DebugOpt = False,
 ) -> None:
@@ -140,13 +201,14 @@ def run(
     with _errors(debug):
         scenario = load_scenario(config, set_ or [])
         out_dir = out if out is not None else default_out_dir(scenario)
-        result = run_scenario(scenario, out_dir, progress=not quiet, html=html, view=view)
+        result = run_scenario(scenario, out_dir, progress=not quiet, html=html, view=view,
+                              overwrite=overwrite)
         print_summary(result.summary, result.out_dir)
         if view:
             _err(f"the live view closed with the run; replay it with: granular-mpc view {result.out_dir}")
         if result.interrupted:
             _err(f"run interrupted: {result.reason}; the log so far is in {result.log_dir}")
-            raise typer.Exit(EXIT_INTERRUPTED)
+            raise typer.Exit(_exit_code_of(result.reason))
         if not result.complete:
             _err(f"run ended early: {result.reason}")
             raise typer.Exit(EXIT_FAILED)
@@ -161,6 +223,7 @@ def sweep(
     workers: Annotated[Optional[int], typer.Option("--workers", "-j", min=1, help="Parallel runs (default: all cores).")] = None,
     backend: Annotated[str, typer.Option("--backend", help="local (process pool) or ray.")] = "local",
     ray_address: Annotated[Optional[str], typer.Option("--ray-address", help="Join a running Ray cluster (e.g. auto or ray://host:10001).")] = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a previous sweep in DIR (else refused).")] = False,
     quiet: QuietOpt = False,
     debug: DebugOpt = False,
 ) -> None:
@@ -184,13 +247,18 @@ def sweep(
                   flush=True)
 
         res = run_sweep(tasks, out_dir, workers=workers, backend=backend,
-                        ray_address=ray_address, progress=not quiet, on_result=line)
+                        ray_address=ray_address, progress=not quiet, on_result=line,
+                        overwrite=overwrite)
         print(f"sweep table: {res.csv}")
         if res.plot is not None:
             print(f"CoT plot: {res.plot} ({res.plot_note})")
         else:
             print(f"CoT plot: none ({res.plot_note})")
         print_ratio(res.ratio)
+        if res.interrupted:
+            _err(f"sweep interrupted by {res.interrupted}: queued runs dropped; sweep.csv "
+                 "lists the runs that finished or were stopped (column complete, reason)")
+            raise typer.Exit(_exit_code_of(res.interrupted))
         if not res.complete:
             _err("sweep incomplete: some runs were interrupted or failed (see sweep.csv: complete, reason)")
             raise typer.Exit(EXIT_FAILED)
@@ -294,10 +362,10 @@ def _parse_noise(items: list[str]) -> dict[str, float]:
 
 
 def _effects(items: list[str]):
-    from .config import EffectSpec
+    from .config import EffectSpec, validate
     from .effects import effect_info
 
-    specs = [EffectSpec.model_validate(e) for e in items]
+    specs = [validate(EffectSpec, e, source=f"--effect {e}") for e in items]
     for s in specs:
         effect_info(s.name)  # unknown name → one clear error listing the registered ones
     return specs
@@ -308,7 +376,16 @@ def _load_effect_files(files: list[Path] | None) -> list[str]:
 
     names: list[str] = []
     for f in files or []:
-        names += load_effect_file(str(f))
+        if f.suffix != ".py":
+            raise ConfigError("an effect file must be a Python file (*.py)",
+                              key="--effect-file", value=str(f))
+        try:
+            names += load_effect_file(str(f))
+        except GranularMpcError:
+            raise
+        except Exception as exc:        # the user's code raised while it was imported
+            raise ConfigError(f"{f} raised {type(exc).__name__} while it was imported: {exc}",
+                              key="--effect-file", value=str(f)) from exc
     return names
 
 
@@ -331,7 +408,7 @@ EffectOpt = Annotated[Optional[list[str]], typer.Option(
 EffectFileOpt = Annotated[Optional[list[Path]], typer.Option(
     "--effect-file", metavar="FILE.py", help="Python file registering user effects (repeatable).")]
 TerrainOpt = Annotated[str, typer.Option("--terrain", help="The model's terrain (name in models/terrain or a path).")]
-WorkersOpt = Annotated[Optional[int], typer.Option("--workers", help="Processes for the replays (default: all CPUs).")]
+WorkersOpt = Annotated[Optional[int], typer.Option("--workers", min=1, help="Processes for the replays (default: all CPUs).")]
 
 
 @app.command()
@@ -348,6 +425,7 @@ def synth(
     fmt: Annotated[str, typer.Option("--format", help="csv or parquet.")] = "csv",
     effect_file: EffectFileOpt = None,
     set_: SetOpt = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a synthetic data set in DATA_DIR (measured data is never replaced).")] = False,
     debug: DebugOpt = False,
 ) -> None:
     """Generate a measurement data set with the plant (+ hidden effects, sensor noise)."""
@@ -361,7 +439,8 @@ def synth(
                          noise=_parse_noise(noise or []),
                          seed=scenario.sim.seed if seed is None else seed,
                          scenario_path=find_scenario(config), speeds=_speeds(speeds),
-                         steps=steps, duration=duration, repeats=repeats, format=fmt)
+                         steps=steps, duration=duration, repeats=repeats, format=fmt,
+                         overwrite=overwrite)
         for note in res.notes:
             _err(f"note: {note}")
         print(f"wrote {out}")

@@ -123,3 +123,8 @@ FOOT_CONTACT = "contact"
 """Per-foot contact flag: 1 while the foot touches the ground, else 0."""
 FOOT_POINT = ("px", "py", "pz")
 """Per-foot contact point ``C`` in W [m]."""
+
+STATUS_FILE = "status.json"
+"""A run or sweep folder's live status: PID, host, start, heartbeat, end, state."""
+LOCK_FILE = ".granular-mpc.lock"
+"""The lock of an output folder while a command writes it (holds the writer's PID)."""

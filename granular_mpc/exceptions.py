@@ -18,6 +18,7 @@ so callers can inspect them rather than parse messages.
 
 from __future__ import annotations
 
+import signal
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -159,3 +160,31 @@ __all__ = [
     "PlantDivergedError", "SolverError", "DataProblem", "DataFormatError", "OutputError",
     "ViewerError",
 ]
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT (Ctrl-C) or SIGTERM stopped a command. Not an error: the command line exits
+    with ``128 + signum`` (130 for SIGINT, 143 for SIGTERM).
+
+    A :class:`KeyboardInterrupt`, so code that handles Ctrl-C handles SIGTERM alike.
+
+    Attributes:
+        signum: the signal number.
+        signame: its name (``"SIGINT"``, ``"SIGTERM"``).
+    """
+
+    def __init__(self, signum: int = 2, detail: str = "") -> None:
+        self.signum = int(signum)
+        try:
+            self.signame = signal.Signals(self.signum).name
+        except ValueError:
+            self.signame = f"signal {self.signum}"
+        super().__init__(f"interrupted by {self.signame}" + (f" {detail}" if detail else ""))
+
+    @property
+    def exit_code(self) -> int:
+        """``128 + signum``: 130 for SIGINT, 143 for SIGTERM."""
+        return 128 + self.signum
+
+
+__all__ += ["Interrupted"]

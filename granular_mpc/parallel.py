@@ -6,8 +6,15 @@ a :class:`concurrent.futures.ProcessPoolExecutor` whose workers start with
 :func:`init_worker` (one BLAS thread: the tasks' matrices are small and the workers
 already use every core; optionally SIGINT ignored). Results come back in task order
 (``ordered=True``) or as they finish, each passed to ``on_result`` as it arrives; the
-outcome is a frozen :class:`PoolRun`. Ctrl-C in the parent cancels the queued tasks,
-waits for the running ones, keeps their results and reports ``interrupted``.
+outcome is a frozen :class:`PoolRun`. Ctrl-C in the parent (or, with
+``handle_signals``, SIGINT / SIGTERM to the parent alone) cancels the queued tasks, sets
+the workers' stop flag (:func:`stop_requested`; a task not yet started returns at once),
+forwards the signal to the workers (``forward_signals``: a run stops cleanly), waits for
+the running tasks (a second signal, or ``grace_s``, kills them), keeps their results and
+reports ``interrupted`` with the signal's name.
+
+No orphans: on Linux every worker asks the kernel for SIGKILL when its parent dies
+(``PR_SET_PDEATHSIG``), so a parent killed outright (SIGKILL) takes its workers along.
 
 Start methods: ``"spawn"`` gives clean workers (nothing inherited; ``fn``, the tasks and
 the results must be picklable); ``"fork"`` (or ``None``, the platform default) lets the
@@ -19,19 +26,28 @@ the state of that call).
 from __future__ import annotations
 
 import concurrent.futures as cf
+import ctypes
 import multiprocessing as mp
 import os
 import signal
+import sys
+import threading
+import time
 from dataclasses import dataclass
 from typing import Any, Callable, Generic, Sequence, TypeVar
 
 from threadpoolctl import threadpool_limits
+
+from .exceptions import Interrupted
 
 T = TypeVar("T")
 R = TypeVar("R")
 
 # the BLAS limit of this worker process (kept alive for the worker's lifetime)
 _worker_limits: list = []
+# the pool's stop flag, in a worker process (set by init_worker)
+_worker_stop: list = []
+_PR_SET_PDEATHSIG = 1
 
 
 @dataclass(frozen=True)
@@ -42,14 +58,20 @@ class PoolRun(Generic[R]):
         results: results of the tasks that finished, in task order.
         indices: their positions in the task list (same order as ``results``).
         n_tasks: number of tasks submitted.
-        interrupted: Ctrl-C (KeyboardInterrupt) in the parent, or ``stop_when`` held for
-            a result: the remaining tasks were dropped.
+        interrupted: Ctrl-C (KeyboardInterrupt) in the parent, SIGINT / SIGTERM with
+            ``handle_signals``, or ``stop_when`` held for a result: the remaining tasks
+            were dropped.
+        signal: the signal that interrupted (``"SIGINT"``, ``"SIGTERM"``), or ``""``.
+        killed: indices of tasks whose worker was killed (a second signal, or the grace
+            period ran out).
     """
 
     results: tuple[R, ...]
     indices: tuple[int, ...]
     n_tasks: int
     interrupted: bool = False
+    signal: str = ""
+    killed: tuple[int, ...] = ()
 
     @property
     def complete(self) -> bool:
@@ -64,24 +86,50 @@ def worker_count(workers: int | None, n_tasks: int) -> int:
     return max(1, min(n, n_tasks))
 
 
+def stop_requested() -> bool:
+    """In a pool worker: the parent was interrupted and wants no new work (a task checks
+    this before starting something long). ``False`` outside a pool."""
+    return bool(_worker_stop) and _worker_stop[0].is_set()
+
+
+def _die_with_parent(parent_pid: int | None) -> None:
+    """Linux: SIGKILL this process when its parent dies (no orphan workers)."""
+    if parent_pid is None or not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):  # pragma: no cover - no prctl
+        return
+    if os.getppid() != parent_pid:     # the parent died before prctl
+        os._exit(1)
+
+
 def init_worker(blas_threads: int | None = 1, ignore_sigint: bool = False,
-                initializer: Callable[..., None] | None = None, initargs: tuple = ()) -> None:
+                initializer: Callable[..., None] | None = None, initargs: tuple = (),
+                stop_event: Any = None, parent_pid: int | None = None) -> None:
     """Start-up of a pool worker (the pool's ``initializer``).
 
     Args:
         blas_threads: BLAS/OpenMP threads of this process (``None``: leave as is).
-        ignore_sigint: ignore SIGINT in this process (a Ctrl-C in a terminal reaches the
-            whole process group; the parent decides what to do with it). A task may still
-            install its own handler while it runs.
+        ignore_sigint: ignore SIGINT and SIGTERM in this process (a Ctrl-C in a terminal
+            reaches the whole process group; the parent decides what to do with it). A
+            task may still install its own handlers while it runs (a run does).
         initializer: called last with ``initargs`` (e.g. to load a model once per worker;
             must be picklable with the ``spawn`` start method).
         initargs: arguments of ``initializer``.
+        stop_event: the pool's stop flag (:func:`stop_requested`).
+        parent_pid: the parent's PID: this worker is killed when the parent dies.
     """
+    _die_with_parent(parent_pid)
+    if stop_event is not None:
+        _worker_stop[:] = [stop_event]
     if ignore_sigint:
-        try:
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
-        except ValueError:  # pragma: no cover - not the main thread
-            pass
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            try:
+                signal.signal(sig, signal.SIG_IGN)
+            except ValueError:  # pragma: no cover - not the main thread
+                pass
     if blas_threads is not None:
         _worker_limits.append(threadpool_limits(limits=int(blas_threads)))
     if initializer is not None:
@@ -92,7 +140,9 @@ def map_tasks(fn: Callable[[T], R], tasks: Sequence[T], *, workers: int | None =
               ordered: bool = True, on_result: Callable[[R], None] | None = None,
               start_method: str | None = None, blas_threads: int | None = 1,
               ignore_sigint: bool = False, initializer: Callable[..., None] | None = None,
-              initargs: tuple = (), stop_when: Callable[[R], bool] | None = None) -> PoolRun[R]:
+              initargs: tuple = (), stop_when: Callable[[R], bool] | None = None,
+              handle_signals: bool = False, forward_signals: bool = False,
+              grace_s: float = 120.0) -> PoolRun[R]:
     """Run ``fn(task)`` for every task, in a process pool or in this process.
 
     Args:
@@ -134,33 +184,111 @@ def map_tasks(fn: Callable[[T], R], tasks: Sequence[T], *, workers: int | None =
         if on_result is not None:
             on_result(r)
 
-    interrupted = False
-    with cf.ProcessPoolExecutor(max_workers=n_workers, mp_context=ctx, initializer=init_worker,
-                                initargs=(blas_threads, ignore_sigint, initializer,
-                                          initargs)) as pool:
-        futs = [pool.submit(fn, t) for t in tasks]
-        index = {f: i for i, f in enumerate(futs)}
-        handled: set = set()
+    stop = (ctx or mp).Event()
+    pool = cf.ProcessPoolExecutor(max_workers=n_workers, mp_context=ctx, initializer=init_worker,
+                                  initargs=(blas_threads, ignore_sigint, initializer, initargs,
+                                            stop, os.getpid()))
+    futs: list[cf.Future] = []
+    index: dict[cf.Future, int] = {}
+    handled: set = set()
+    killed: list[int] = []
+    signame = ""
+    with _ParentSignals(handle_signals):
         try:
-            for f in (futs if ordered else cf.as_completed(futs)):
-                r = f.result()
+            try:
+                futs = [pool.submit(fn, t) for t in tasks]
+                index = {f: i for i, f in enumerate(futs)}
+                for f in (futs if ordered else cf.as_completed(futs)):
+                    r = f.result()
+                    handled.add(f)
+                    got(index[f], r)
+            except KeyboardInterrupt as exc:
+                # queued tasks are dropped; running ones end (a run stops cleanly)
+                signame = getattr(exc, "signame", "SIGINT")
+                stop.set()
+                pool.shutdown(wait=False, cancel_futures=True)
+                killed = _drain(futs, index, handled, got, signame, forward_signals, grace_s)
+            except BaseException:
+                stop.set()
+                pool.shutdown(wait=False, cancel_futures=True)
+                raise
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+    return _outcome(done, len(tasks), bool(signame), signame, killed)
+
+
+class _ParentSignals:
+    """SIGINT / SIGTERM → :class:`Interrupted` in the parent while a pool runs."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled and threading.current_thread() is threading.main_thread()
+        self._old: dict[int, Any] = {}
+
+    def __enter__(self) -> "_ParentSignals":
+        if self.enabled:
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._raise)
+        return self
+
+    @staticmethod
+    def _raise(signum, frame) -> None:
+        raise Interrupted(signum)
+
+    def __exit__(self, *exc) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+
+def _workers() -> list:
+    """This process's live worker processes (``multiprocessing`` children)."""
+    return [p for p in mp.active_children() if p.pid is not None]
+
+
+def _drain(futs: list, index: dict, handled: set, got: Callable, signame: str,
+           forward: bool, grace_s: float) -> list[int]:
+    """After an interruption: collect the results of the running tasks, forwarding the
+    signal to the workers; a second signal or ``grace_s`` kills them. Returns the
+    indices of the tasks lost with a killed worker."""
+    sig = getattr(signal, signame, signal.SIGINT)
+    deadline = time.monotonic() + grace_s
+    next_forward = 0.0
+    pending = [f for f in futs if f not in handled and not f.cancelled()]
+    kill = False
+    while pending and not kill:
+        try:
+            if forward and time.monotonic() >= next_forward:
+                for p in _workers():
+                    _send(p.pid, sig)
+                next_forward = time.monotonic() + 2.0
+            done, _ = cf.wait(pending, timeout=0.2)
+            for f in done:
                 handled.add(f)
-                got(index[f], r)
-        except KeyboardInterrupt:
-            # queued tasks are dropped; running ones end (a run stops cleanly on SIGINT)
-            interrupted = True
-            _cancel(futs)
-            for f in futs:
-                if f in handled or f.cancelled():
-                    continue
                 try:
                     got(index[f], f.result())
-                except Exception:  # a worker lost to the interrupt
+                except (Exception, cf.CancelledError):  # a worker lost to the interrupt
                     pass
-        except BaseException:
-            _cancel(futs)
-            raise
-    return _outcome(done, len(tasks), interrupted)
+            pending = [f for f in pending if f not in done and not f.cancelled()]
+            kill = time.monotonic() > deadline
+        except KeyboardInterrupt:          # a second signal: no more waiting
+            kill = True
+    if not pending:
+        return []
+    for p in _workers():
+        _send(p.pid, signal.SIGKILL)
+    for f in pending:
+        try:
+            got(index[f], f.result(timeout=10.0))
+            handled.add(f)
+        except BaseException:  # noqa: BLE001 - the worker is gone
+            pass
+    return sorted(index[f] for f in pending if f not in handled)
+
+
+def _send(pid: int, sig: int) -> None:
+    try:
+        os.kill(pid, sig)
+    except (ProcessLookupError, PermissionError):
+        pass
 
 
 def _map_here(fn: Callable[[T], R], tasks: list, on_result: Callable[[R], None] | None,
@@ -182,9 +310,11 @@ def _cancel(futs: Sequence[cf.Future]) -> None:
         f.cancel()
 
 
-def _outcome(done: dict[int, Any], n_tasks: int, interrupted: bool) -> PoolRun:
+def _outcome(done: dict[int, Any], n_tasks: int, interrupted: bool, signame: str = "",
+             killed: Sequence[int] = ()) -> PoolRun:
     order = sorted(done)
-    return PoolRun(tuple(done[i] for i in order), tuple(order), n_tasks, interrupted)
+    return PoolRun(tuple(done[i] for i in order), tuple(order), n_tasks, interrupted,
+                   signame, tuple(killed))
 
 
-__all__ = ["PoolRun", "map_tasks", "worker_count", "init_worker"]
+__all__ = ["PoolRun", "map_tasks", "worker_count", "init_worker", "stop_requested"]

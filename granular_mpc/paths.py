@@ -12,18 +12,27 @@ Search order for a name such as ``dry_sand`` of kind ``terrain``:
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 from .exceptions import ModelFileError
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
+_warned_missing: set[str] = set()
 
 
 def models_dirs() -> list[Path]:
     """Folders searched for robot and terrain files, first match wins."""
     dirs: list[Path] = []
     env = os.environ.get("GRANULAR_MPC_MODELS", "")
-    dirs += [Path(p) for p in env.split(os.pathsep) if p]
+    for p in filter(None, env.split(os.pathsep)):
+        if not Path(p).is_dir():
+            if p not in _warned_missing:     # once per folder and process
+                _warned_missing.add(p)
+                warnings.warn(f"GRANULAR_MPC_MODELS names {p!r}, which is not a folder: "
+                              "ignored", stacklevel=2)
+            continue
+        dirs.append(Path(p))
     for candidate in (_PACKAGE_DIR / "_models", _PACKAGE_DIR.parent / "models"):
         if candidate.is_dir():
             dirs.append(candidate)

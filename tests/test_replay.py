@@ -169,3 +169,117 @@ def test_unwritable_report_folder_fails_before_any_replay(workbench_data, tmp_pa
     fn = validate if command == "validate" else diagnose
     with pytest.raises(OutputError, match="a_file exists and is not a folder"):
         fn(workbench_data("null"), blocker)
+
+
+# ------------------------------------------------------------- user effects of every kind
+def _user_sensor(name, fn, params):
+    from granular_mpc.effects import register_sensor_effect, registered_names
+
+    if name not in registered_names():
+        register_sensor_effect(name, params=params)(fn)
+    from granular_mpc.effects import effect_info
+    return effect_info(name)
+
+
+def _torque_gain(cols, p, ctx):
+    """Current-based torque sensing with a gain error: τ_meas = g τ on every joint."""
+    return {f"tau_{j}": p["gain"] * np.asarray(cols[f"tau_{j}"]) for j in ctx.joint_names}
+
+
+def _knee_offset(cols, p, ctx):
+    """Zero offset of the left knee encoder: q_meas = q + δ."""
+    return {"q_left_knee": np.asarray(cols["q_left_knee"]) + p["offset"]}
+
+
+def test_a_sensor_effect_on_the_torques_drives_the_replay(clean_windows):
+    """A user sensor effect on the tau_* columns (inputs of the replay) used to crash
+    (KeyError 'tau_left_hip_abd': sensor effects saw only the replayed channels); now the
+    replay is driven by the true torques τ_meas / g."""
+    from granular_mpc.effects import Param
+
+    info = _user_sensor("_test_torque_gain", _torque_gain,
+                        {"gain": Param(1.1, 0.5, 2.0, "-", "torque gain")})
+    ds, rm, ws = clean_windows
+    w = ws[3]
+    base = replay_granular(rm, w, Variant())
+    same = replay_granular(rm, w, effect_variant([(info, {"gain": 1.0})]))
+    np.testing.assert_allclose(same["q_left_knee"], base["q_left_knee"], atol=1e-12)
+    weak = replay_granular(rm, w, effect_variant([(info, {"gain": 1.3})]))
+    assert not weak["diverged"]
+    assert np.max(np.abs(weak["q_right_knee"] - base["q_right_knee"])) > 0.01
+
+
+def test_an_encoder_offset_at_its_true_value_restores_the_replay(clean_windows):
+    """Data whose left-knee encoder reads 0.05 rad high: the term with the true offset
+    must bring the replay back to the plant's (the window starts from the true angle, the
+    offset is added to the output), not double the error."""
+    import dataclasses
+
+    from granular_mpc.effects import Param
+
+    info = _user_sensor("_test_knee_offset", _knee_offset,
+                        {"offset": Param(0.01, -0.2, 0.2, "rad", "encoder zero offset")})
+    ds, rm, ws = clean_windows
+    delta = 0.05
+    trials = {}
+    for name, df in ds.trials.items():
+        df = df.copy()
+        df["q_left_knee"] = df["q_left_knee"] + delta
+        trials[name] = df
+    biased = dataclasses.replace(ds, trials=trials)
+    wb = stance_windows(biased, rm.biped, contact_stiffness=rm.contact_stiffness)
+    k = next(i for i, w in enumerate(ws) if w.side == "left")
+    ref = replay_granular(rm, ws[k], Variant())            # unbiased data, no term
+    off = replay_granular(rm, wb[k], Variant())            # biased data, no term
+    fix = replay_granular(rm, wb[k], effect_variant([(info, {"offset": delta})]))
+
+    def err(out, w):
+        return float(np.sqrt(np.mean((out["q_left_knee"] - w.meas["q_left_knee"]) ** 2)))
+
+    e_ref, e_off, e_fix = err(ref, ws[k]), err(off, wb[k]), err(fix, wb[k])
+    assert e_fix < e_off
+    assert e_fix == pytest.approx(e_ref, abs=0.2 * e_ref + 2e-3)
+    np.testing.assert_allclose(fix["grf_z"], ref["grf_z"], atol=0.05 * np.abs(ref["grf_z"]).max())
+
+
+def test_position_dependent_terms_see_world_coordinates(clean_windows):
+    """A terrain force acting only beyond a world x: the replay sees the contact point in
+    the data set's world x (as synth's plant does), not in the stance's local frame."""
+    import dataclasses
+
+    from granular_mpc.effects import Param, register_effect, registered_names
+
+    name = "_test_beyond_x"
+    if name not in registered_names():
+        @register_effect(name, params={"f": Param(0.0, 0.0, 500.0, "N", ""),
+                                       "x0": Param(0.0, -100.0, 100.0, "m", "")})
+        def _beyond(o, s, p):
+            """A vertical push on patches beyond the world x0."""
+            return (0.0, 0.0, p["f"] * s.in_contact * o.if_else(s.p_c[0] > p["x0"], 1.0, 0.0))
+    ds, _, ws = clean_windows
+    rm = build_replay_model(load_biped(ds.meta.robot, with_visuals=False),
+                            model_terrain("dry_sand"), sample_rate_hz=ds.meta.sample_rate_hz,
+                            terrain_effects=[name])
+    w = ws[3]
+    far = dataclasses.replace(w, origin=w.origin + np.array([50.0, 0.0, 0.0]))
+    base = replay_granular(rm, far, Variant())
+    on = replay_granular(rm, far, Variant(theta={f"{name}.f": 200.0, f"{name}.x0": 45.0}))
+    off = replay_granular(rm, far, Variant(theta={f"{name}.f": 200.0, f"{name}.x0": 55.0}))
+    np.testing.assert_allclose(off["grf_z"], base["grf_z"], atol=1e-9)
+    assert np.max(np.abs(on["grf_z"] - base["grf_z"])) > 20.0
+    # moving the whole stance does not change the replay (the dynamics are translation-free)
+    np.testing.assert_allclose(base["q_left_knee"], replay_granular(rm, w, Variant())["q_left_knee"],
+                               atol=1e-6)
+
+
+def test_a_sensor_effect_reading_a_missing_column_is_refused_up_front(workbench_data):
+    from granular_mpc.effects import Param
+
+    def _bad(cols, p, ctx):
+        """Reads a column the data set does not have."""
+        return {"grf_z": np.asarray(cols["load_cell_raw"]) * p["k"]}
+
+    _user_sensor("_test_bad_sensor", _bad, {"k": Param(1.0, 0.0, 2.0, "-", "")})
+    with pytest.raises(ConfigError, match="_test_bad_sensor.*'load_cell_raw'"):
+        validate(workbench_data("null"), None, model="rigid", effects=["_test_bad_sensor"],
+                 workers=1, figures=False)

@@ -1,11 +1,16 @@
-"""Terrain section of the config: a granular layer or rigid ground (``models/terrain/*.yaml``)."""
+"""Terrain section of the config: a granular layer, rigid ground, or a track of segments
+(``models/terrain/*.yaml``)."""
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+import math
+from typing import Annotated, Any, Literal, Mapping, Optional, Union
 
-from pydantic import Field
+import yaml
+from pydantic import Field, field_validator, model_validator
 
+from ..exceptions import ConfigError
+from ..paths import resolve_file
 from ..rft_coefficients import GENERIC
 from .base import FiniteFloat, NonNegFloat, PositiveFloat, StrictModel
 from .effects import EffectSpec
@@ -72,9 +77,126 @@ class RigidTerrainConfig(_TerrainBase):
     contact_damping: NonNegFloat = Field(100.0, description="Normal and tangential damping per patch [N·s/m].")
 
 
-TerrainConfig = Annotated[Union[GranularTerrainConfig, RigidTerrainConfig],
+UniformTerrainConfig = Annotated[Union[GranularTerrainConfig, RigidTerrainConfig],
+                                 Field(discriminator="kind")]
+"""One medium everywhere (granular or rigid), told apart by its ``kind`` key."""
+
+
+def _segment_terrain_mapping(ref: Any, index_key: str) -> Any:
+    """A segment's ``terrain`` reference → mapping: a file name (``models/terrain/<name>``
+    or a path), a mapping with ``file:`` plus keys to change, or a full mapping."""
+    if isinstance(ref, str):
+        data = _read_terrain_file(ref, index_key)
+    elif isinstance(ref, Mapping) and "file" in ref:
+        if not isinstance(ref["file"], str):
+            raise ConfigError("must be a terrain file name", key=f"{index_key}.file", value=ref["file"])
+        data = _read_terrain_file(ref["file"], f"{index_key}.file")
+        data.update({k: v for k, v in ref.items() if k != "file"})
+    else:
+        return ref
+    if data.get("kind") == "track":
+        raise ConfigError("a track segment must be one medium, not another track",
+                          key=index_key, value=data.get("name"))
+    return data
+
+
+def _read_terrain_file(name: str, key: str) -> dict:
+    """The mapping of terrain file ``name`` (not validated).
+
+    (The loader's ``load_yaml`` cannot be used here: the loader imports this module.)"""
+    path = resolve_file("terrain", name, key=key)
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f"cannot read terrain file {path}: {exc}", key=key, value=name) from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"terrain file {path} must hold a mapping", key=key, value=name)
+    return data
+
+
+class TrackSegment(StrictModel):
+    """One stretch of a :class:`TrackTerrainConfig`: a medium up to ``until_x``."""
+
+    until_x: Optional[FiniteFloat] = Field(
+        None, description="End of the segment along world x [m] (exclusive); the last "
+                          "segment has none and runs to +∞.")
+    terrain: UniformTerrainConfig = Field(
+        description="The segment's medium: a terrain file name (models/terrain/), a mapping "
+                    "with 'file:' plus keys to change, or a full terrain mapping.")
+
+    @field_validator("terrain", mode="before")
+    @classmethod
+    def _load(cls, value: Any) -> Any:
+        return _segment_terrain_mapping(value, "terrain")
+
+
+class TrackTerrainConfig(StrictModel):
+    """A track whose ground law changes along world x (the paper's rigid platform then a
+    12 cm sand layer level with it).
+
+    Segment k holds for ``until_x[k-1] ≤ x < until_x[k]`` (the first from −∞, the last to
+    +∞), x being the foot's lowest sole point at touchdown (see
+    :mod:`granular_mpc.terrain.track`). Every segment must have the same free surface
+    (height and slope): the track is level across its edges.
+    """
+
+    kind: Literal["track"] = "track"
+    name: str = Field("track", description="Human-readable name of the track.")
+    description: str = ""
+    source: str = Field("", description="Where the layout comes from.")
+    segments: list[TrackSegment] = Field(min_length=2, description="Segments in increasing x.")
+
+    @model_validator(mode="after")
+    def _layout(self) -> "TrackTerrainConfig":
+        ends = [s.until_x for s in self.segments]
+        if any(e is None for e in ends[:-1]):
+            raise ValueError("every segment but the last needs until_x [m]")
+        if ends[-1] is not None:
+            raise ValueError("the last segment runs to +inf: drop its until_x")
+        inner = [float(e) for e in ends[:-1]]
+        if any(b <= a for a, b in zip(inner, inner[1:])):
+            raise ValueError(f"until_x must increase from segment to segment, got {inner}")
+        first = self.segments[0].terrain
+        for s in self.segments[1:]:
+            t = s.terrain
+            if not (math.isclose(t.surface_height, first.surface_height, abs_tol=1e-12)
+                    and list(t.surface_slope) == list(first.surface_slope)):
+                raise ValueError("every segment must have the same surface_height and "
+                                 "surface_slope (a level track); got "
+                                 f"{first.name}: {first.surface_height:g} m, {list(first.surface_slope)} and "
+                                 f"{t.name}: {t.surface_height:g} m, {list(t.surface_slope)}")
+        return self
+
+    @property
+    def surface_height(self) -> float:
+        """Height of the (common) free surface [m], world frame."""
+        return float(self.segments[0].terrain.surface_height)
+
+    @property
+    def surface_slope(self) -> list[float]:
+        """The (common) surface slope dz/dx, dz/dy [-]."""
+        return list(self.segments[0].terrain.surface_slope)
+
+    @property
+    def edges(self) -> tuple[float, ...]:
+        """x of each edge between segments [m], increasing."""
+        return tuple(float(s.until_x) for s in self.segments[:-1])
+
+    def segment_index(self, x: float) -> int:
+        """Index of the segment holding world x [m] (an edge belongs to the next one)."""
+        for k, e in enumerate(self.edges):
+            if x < e:
+                return k
+        return len(self.segments) - 1
+
+    def terrain_at(self, x: float):
+        """The medium (a granular or rigid config) at world x [m]."""
+        return self.segments[self.segment_index(x)].terrain
+
+
+TerrainConfig = Annotated[Union[GranularTerrainConfig, RigidTerrainConfig, TrackTerrainConfig],
                           Field(discriminator="kind")]
-"""Either terrain kind, told apart by its ``kind`` key."""
+"""Any terrain kind (granular, rigid or a track of them), told apart by its ``kind`` key."""
 
 __all__ = ["RFTCoefficients", "GranularTerrainConfig", "RigidTerrainConfig",
-           "TerrainConfig"]
+           "UniformTerrainConfig", "TrackSegment", "TrackTerrainConfig", "TerrainConfig"]

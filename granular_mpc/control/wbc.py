@@ -28,13 +28,33 @@ import pinocchio as pin
 
 from ..config import WBCConfig
 from ..robot.model import SIDES, Biped
-from ..rotations import cross_rows, matrix_from_quat_xyzw, skew_rows
+from ..rotations import matrix_from_quat_xyzw, skew_rows
 from .contact_model import GroundModel
 from .solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _ACCELERATION = pin.KinematicLevel.ACCELERATION
 BIG = 1e20
+
+
+def _point_kinematics(acc: list, vel: list, offsets: list) -> tuple[np.ndarray, np.ndarray]:
+    """Drift accelerations ``a_o + α × r + ω × (ω × r)`` and velocities ``v_o + ω × r`` of
+    the contact points (world frame) of both feet, from each foot frame's classical
+    acceleration and velocity (6-vectors, linear first) and the points' offsets r (lists).
+    Plain float arithmetic: for a handful of points it is far cheaper than NumPy's
+    per-call overhead (same IEEE operations as the array form)."""
+    drift, vp = [], []
+    for (ax, ay, az, alx, aly, alz), (vx, vy, vz, wx, wy, wz), pts in zip(acc, vel, offsets):
+        d_f, v_f = [], []
+        for rx, ry, rz in pts:
+            wrx, wry, wrz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx
+            d_f.append((ax + (aly * rz - alz * ry) + (wy * wrz - wz * wry),
+                        ay + (alz * rx - alx * rz) + (wz * wrx - wx * wrz),
+                        az + (alx * ry - aly * rx) + (wx * wry - wy * wrx)))
+            v_f.append((vx + wrx, vy + wry, vz + wrz))
+        drift.append(d_f)
+        vp.append(v_f)
+    return np.array(drift), np.array(vp)
 
 
 @dataclass
@@ -195,16 +215,13 @@ class WholeBodyController:
         # feet: frame Jacobians, velocities and drift accelerations, both feet at once
         fids = (b.foot_frame[SIDES[0]], b.foot_frame[SIDES[1]])
         J6 = np.stack([pin.getFrameJacobian(model, pd, fid, _LWA) for fid in fids])  # (2,6,nv)
-        acc = np.stack([pin.getFrameClassicalAcceleration(model, pd, fid, _LWA).vector
-                        for fid in fids])                                           # (2, 6)
-        vel = np.stack([pin.getFrameVelocity(model, pd, fid, _LWA).vector for fid in fids])
-        a_o, alpha, v_o, w_f = acc[:, None, :3], acc[:, None, 3:], vel[:, None, :3], vel[:, None, 3:]
+        acc = [pin.getFrameClassicalAcceleration(model, pd, fid, _LWA).vector.tolist()
+               for fid in fids]
+        vel = [pin.getFrameVelocity(model, pd, fid, _LWA).vector.tolist() for fid in fids]
         r = np.stack([feet[0].offsets, feet[1].offsets])                            # (2,nps,3)
-        # contact point Jacobians J_o − [r]× J_ω, drifts a_o + α × r + ω × (ω × r)
-        Jp = J6[:, None, :3, :] - np.einsum("fpab,fbk->fpak", skew_rows(r), J6[:, 3:, :])
-        wr = cross_rows(w_f, r)
-        drift = a_o + cross_rows(alpha, r) + cross_rows(w_f, wr)                    # (2,nps,3)
-        vp = v_o + wr
+        # contact point Jacobians J_o − [r]× J_ω (one batched product for all points)
+        Jp = J6[:, None, :3, :] - skew_rows(r) @ J6[:, None, 3:, :]                 # (2,nps,3,nv)
+        drift, vp = _point_kinematics(acc, vel, r.tolist())                         # (2,nps,3)
         row = 6
         granular = self.ground.granular
         for i, side in enumerate(SIDES):
@@ -227,9 +244,9 @@ class WholeBodyController:
             else:
                 p_o = pd.oMf[fids[i]].translation
                 a_des = (ref.swing_acc[i] + self.swing_kp * (ref.swing_pos[i] - p_o)
-                         + self.swing_kd * (ref.swing_vel[i] - v_o[i, 0]))
+                         + self.swing_kd * (ref.swing_vel[i] - np.array(vel[i][:3])))
                 J[row:row + 3] = J6[i, :3]
-                e[row:row + 3] = a_o[i, 0] - a_des
+                e[row:row + 3] = np.array(acc[i][:3]) - a_des
                 wt[row:row + 3] = c.w_swing
                 names.append((f"swing_{side}", row, row + 3))
                 row += 3
@@ -313,4 +330,4 @@ class WholeBodyController:
         return tau[b.idx_v - 6]          # v order → actuator order
 
 
-__all__ = ["WholeBodyController", "WBCReference", "WBCData", "FootPoints"]
+__all__ = ["WholeBodyController", "WBCReference", "WBCData", "WBCWork", "FootPoints"]

@@ -30,7 +30,8 @@ from .params import Param, resolve_params
 from .registry import (FORBIDDEN_NAME_CHARS, KINDS, NAME_FORM, Effect, EffectInfo, EffectKind,
                        all_effects, check_name, describe_effect, effect_info, effect_kind,
                        get_effect, registered_effects, registered_names)
-from .sensor import apply_sensor_effects, force_sensor_bias
+from .sensor import (apply_sensor_effects, check_sensor_effect, force_sensor_bias,
+                     invert_sensor_effects)
 from .state import ForceFn, PatchState, SensorContext
 from .terrain_force import cohesion, depth_hardening, elastic_unloading, inertial_drag
 
@@ -44,7 +45,8 @@ __all__ = [
     "register_joint_effect", "register_sensor_effect", "register_geometry_effect",
     "load_effect_file",
     # applying each kind
-    "joint_torque_function", "apply_sensor_effects", "geometry_theta", "GEOMETRY_THETA",
+    "joint_torque_function", "apply_sensor_effects", "check_sensor_effect",
+    "invert_sensor_effects", "geometry_theta", "GEOMETRY_THETA",
     # the library
     "inertial_drag", "cohesion", "depth_hardening", "elastic_unloading", "joint_friction",
     "force_sensor_bias", "terrain_slope",

@@ -25,6 +25,11 @@ class Param:
         upper: largest physically allowed value [``unit``].
         unit: SI unit, in words or symbols (``"Pa"``, ``"N·m·s/rad"``, ``"-"``).
         doc: what the parameter means.
+        physical: the interval the effect's physics allows, when narrower than the bounds
+            a fit may explore (e.g. a *hardening* exponent n ≥ 1 within [0.3, 3]); None:
+            the bounds. A diagnosis reports a fitted value outside it as such ("wrong
+            sign" when it lies on the other side of the neutral value) and does not
+            present the effect as the answer.
     """
 
     default: float
@@ -32,6 +37,12 @@ class Param:
     upper: float
     unit: str = ""
     doc: str = ""
+    physical: tuple[float, float] | None = None
+
+    @property
+    def physical_range(self) -> tuple[float, float]:
+        """:attr:`physical`, or the bounds when it is not set."""
+        return self.physical if self.physical is not None else (self.lower, self.upper)
 
     def check(self, effect: str, name: str, value: float) -> float:
         """``value`` as a float if it lies in ``[lower, upper]``.

@@ -5,6 +5,14 @@ NumPy arrays of one trial (or a replayed prediction of it), ``ctx`` is a
 :class:`~granular_mpc.effects.state.SensorContext`; it returns the columns it changes as
 new arrays. :func:`apply_sensor_effects` applies several in order. Library:
 ``force_sensor_bias``.
+
+A sensor effect maps the *true* columns to the *measured* ones. It receives every column
+of the data format (``q_*``, ``dq_*``, ``tau_*``, ``base_*``, ``grf_*``, ``intrusion_*``,
+``time``) and may change any of them, inputs such as ``tau_*`` included.
+:func:`check_sensor_effect` tries it once on a data set's columns (a clear error naming the
+effect and the column it reads that the data do not have); :func:`invert_sensor_effects`
+solves the map for the true values of chosen columns (what a replay driven by measured
+torques and started from a measured state needs, ``docs/validation.md`` §2).
 """
 
 from __future__ import annotations
@@ -13,6 +21,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from ..exceptions import ConfigError
 from .api import register_sensor_effect
 from .params import Param
 from .registry import EffectInfo
@@ -56,4 +65,87 @@ def apply_sensor_effects(cols: Mapping[str, np.ndarray],
     return out
 
 
-__all__ = ["force_sensor_bias", "apply_sensor_effects"]
+def check_sensor_effect(info: EffectInfo, params: Mapping[str, float],
+                        cols: Mapping[str, np.ndarray], ctx: SensorContext) -> tuple[str, ...]:
+    """Apply a sensor effect once to ``cols`` and return the columns it changes.
+
+    Args:
+        info: the effect (kind ``sensor``).
+        params: its parameter values.
+        cols: every column of (a part of) a data set, format-v1 names.
+        ctx: the rows' stance labels, times and joint names.
+
+    Returns:
+        The names of the columns it returns, sorted.
+
+    Raises:
+        ConfigError: it reads a column ``cols`` does not have (the error names the effect
+            and the column), fails otherwise, or returns a column that is not one of
+            ``cols`` or an array of another length.
+    """
+    key = f"effects.{info.name}"
+    try:
+        changed = info.fn(dict(cols), dict(params), ctx)
+    except KeyError as exc:
+        col = exc.args[0] if exc.args else "?"
+        raise ConfigError(f"sensor effect '{info.name}' reads column {col!r}, which the data "
+                          "set does not have", key=key, value=str(col),
+                          allowed=", ".join(sorted(cols))) from None
+    except Exception as exc:                       # a user's function: say whose it is
+        raise ConfigError(f"sensor effect '{info.name}' failed on the data set's columns: "
+                          f"{type(exc).__name__}: {exc}", key=key) from None
+    n = len(ctx.time)
+    for c, v in dict(changed).items():
+        if c not in cols:
+            raise ConfigError(f"sensor effect '{info.name}' returns column {c!r}, which is "
+                              "not a column of the data format", key=key, value=str(c),
+                              allowed=", ".join(sorted(cols)))
+        if np.shape(np.asarray(v, dtype=float)) != (n,):
+            raise ConfigError(f"sensor effect '{info.name}' returns column {c!r} with shape "
+                              f"{np.shape(v)}; expected ({n},)", key=key, value=str(c))
+    return tuple(sorted(changed))
+
+
+def invert_sensor_effects(cols: Mapping[str, np.ndarray],
+                          specs: Sequence[tuple[EffectInfo, Mapping[str, float]]],
+                          ctx: SensorContext, targets: Sequence[str], *,
+                          iterations: int = 6, tol: float = 1e-12) -> dict[str, np.ndarray]:
+    """True values of the columns ``targets`` whose image under the sensor effects of
+    ``specs`` is the measured ``cols``: x with h(x) = m, solved element by element by
+    Newton iterations with a finite-difference slope (exact in one iteration for an
+    offset, in a few for a gain; a column-wise map is assumed, cross-column maps are
+    solved approximately).
+
+    Args:
+        cols: measured columns (every column the effects read).
+        specs: ``(EffectInfo, parameter values)`` per effect (other kinds skipped).
+        ctx: the rows' context.
+        targets: the columns to solve for (the others are held at their measured values).
+
+    Returns:
+        ``cols`` with ``targets`` replaced by their true values (a new dict).
+    """
+    specs = [(i, p) for i, p in specs if i.kind == "sensor"]
+    x = {c: np.asarray(v, dtype=float) for c, v in cols.items()}
+    targets = [t for t in targets if t in x]
+    if not specs or not targets:
+        return x
+    meas = {t: x[t].copy() for t in targets}
+    for _ in range(iterations):
+        hx = apply_sensor_effects(x, specs, ctx)
+        r = {t: hx[t] - meas[t] for t in targets}
+        if max(float(np.max(np.abs(v), initial=0.0)) for v in r.values()) <= tol:
+            break
+        eps = {t: 1e-6 * np.maximum(np.abs(x[t]), 1.0) for t in targets}
+        x_eps = dict(x)
+        x_eps.update({t: x[t] + eps[t] for t in targets})
+        hx_eps = apply_sensor_effects(x_eps, specs, ctx)
+        for t in targets:
+            slope = (hx_eps[t] - hx[t]) / eps[t]
+            slope = np.where(np.abs(slope) > 1e-6, slope, 1.0)
+            x[t] = x[t] - r[t] / slope
+    return x
+
+
+__all__ = ["force_sensor_bias", "apply_sensor_effects", "check_sensor_effect",
+           "invert_sensor_effects"]

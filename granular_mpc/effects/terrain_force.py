@@ -55,7 +55,8 @@ def cohesion(o, s: PatchState, p):
 
 
 @register_effect("depth_hardening", params={
-    "n": Param(1.5, 0.3, 3.0, "-", "exponent of depth in the stress law (1: RFT, no effect)"),
+    "n": Param(1.5, 0.3, 3.0, "-", "exponent of depth in the stress law (1: RFT, no effect)",
+               physical=(1.0, 3.0)),
     "d_ref": Param(0.02, 0.002, 0.1, "m", "depth at which the stress equals the RFT value"),
 }, main="n", neutral={"n": 1.0},
     depends_on=("depth (relative to d_ref)", "load during penetration"))

@@ -1,6 +1,7 @@
 """One run: the ``granular-mpc run`` command (:func:`run_scenario`) and its result.
 
-Writes the run folder (:mod:`granular_mpc.runner.rundir`): ``config.resolved.yaml``
+Writes the run folder (:mod:`granular_mpc.runner.rundir`, locked while written,
+``status.json`` with a heartbeat: :mod:`granular_mpc.runner.status`): ``config.resolved.yaml``
 (before the run starts), the chunked Parquet log written as the run goes, a progress bar,
 Ctrl-C / divergence / error handling, ``summary.json``
 (:func:`granular_mpc.analysis.summary.summarize`), plots and the standalone HTML page.
@@ -18,14 +19,15 @@ from typing import Callable, Sequence
 from ..analysis.summary import summarize
 from ..columns import HTML_FILE, LOG_DIR, PLOTS_DIR, RESOLVED_FILE, SUMMARY_FILE
 from ..config import ScenarioConfig
-from ..exceptions import GranularMpcError, OutputError, PlantDivergedError
-from ..output import write_json
+from ..exceptions import GranularMpcError, Interrupted, OutputError, PlantDivergedError
+from ..output import OutputLock, make_output_folder, write_json
 from ..runlog import RunLog, read_log
 from .build import build_simulation
 from .loop import closed_loop
 from .progress import RunProgress
 from .rundir import prepare_out_dir, write_resolved_config
-from .signals import StopOnSignal
+from .signals import RunSignals
+from .status import StatusWriter, end_state
 
 
 @dataclass(frozen=True)
@@ -68,95 +70,150 @@ class RunResult:
 def run_scenario(scenario: ScenarioConfig, out_dir: str | Path, *, progress: bool = True,
                  html: bool = False, view: bool = False,
                  on_row: Callable[[dict], None] | None = None,
-                 extra_effects: Sequence = ()) -> RunResult:
+                 extra_effects: Sequence = (), overwrite: bool = False) -> RunResult:
     """Run one scenario and write its folder (the ``granular-mpc run`` command).
 
-    Writes, in this order: ``config.resolved.yaml`` (before the first step), ``log/``
-    (chunked Parquet, flushed every ``output.flush_every`` rows as the run goes),
-    ``summary.json``, ``plots/*.png`` (``output.plots``) and, with ``html``,
-    ``animation.html``. A ``summary.json`` marked ``"complete": false, "reason":
-    "running"`` stands from the start, so even a killed process leaves one.
+    The folder is locked while the run writes it (a second writer gets an
+    :class:`OutputError` naming this process's PID) and ``status.json``
+    (:mod:`granular_mpc.runner.status`) says ``running`` with a heartbeat every few
+    seconds, then ``complete``, ``interrupted`` or ``failed``. Writes, in this order:
+    ``config.resolved.yaml`` (before the first step), ``log/`` (chunked Parquet, flushed
+    every ``output.flush_every`` rows as the run goes), ``summary.json``, ``plots/*.png``
+    (``output.plots``) and, with ``html``, ``animation.html``. A ``summary.json`` marked
+    ``"complete": false, "reason": "running"`` stands from the start, so even a killed
+    process leaves one (and ``status.json`` tells it is dead).
 
     A run ends normally at ``sim.duration`` or at a fall (``fall.stop``): ``complete`` is
-    true and ``reason`` says which. Ctrl-C (SIGINT) or SIGTERM, a diverged plant
+    true and ``reason`` says which. Ctrl-C (SIGINT) or SIGTERM — during start-up, the
+    loop (a second one too) or the summary — a diverged plant
     (:class:`PlantDivergedError`) or any :class:`GranularMpcError` end it early: the log
     parts written so far stay readable, the summary is computed from them and marked
     ``"complete": false`` with the ``reason``. Nothing is raised for these; other
-    exceptions are re-raised after the summary is written.
+    exceptions are re-raised after the summary is written. ``summary.json`` and
+    ``status.json`` record the package version and the ProxSuite build.
 
     Args:
         scenario: the validated scenario (:func:`granular_mpc.scenario.load_scenario`).
-        out_dir: the run folder (created; a previous run's outputs in it are replaced).
+        out_dir: the run folder (created).
         progress: show a progress bar on stderr.
         html: also write ``animation.html`` (standalone Meshcat page).
         view: live Meshcat view while the run goes (prints the URL).
         on_row: called with every log row (a dict), e.g. to watch a run from a script.
         extra_effects: plant-only extra terrain effects (see :func:`build_simulation`).
+        overwrite: replace a previous run's outputs in ``out_dir`` (else refused).
 
     Returns:
         :class:`RunResult`.
 
     Raises:
-        OutputError: the folder cannot be written (before anything runs).
+        OutputError: the folder cannot be written, holds a previous run (without
+            ``overwrite``) or is being written by another process (before anything runs).
         ConfigError: the scenario cannot be built.
+        Interrupted: SIGINT / SIGTERM before the folder was touched.
     """
-    sim = build_simulation(scenario, extra_effects=extra_effects)   # bad config: nothing written
-    out = prepare_out_dir(out_dir)
-    write_resolved_config(scenario, out / RESOLVED_FILE)
-    write_json(out / SUMMARY_FILE, {"scenario": scenario.name, "complete": False,
-                                    "reason": "running"})
-    log = RunLog(out / LOG_DIR, flush_every=scenario.output.flush_every)
-    state = sim.new_state()
-    viewer = None
-    if view:
-        # the viewer (meshcat, zmq) is imported only when asked for
-        from ..viz.meshcat import LiveViewer, ViewerError
+    with RunSignals() as signals:
+        sim = build_simulation(scenario, extra_effects=extra_effects)   # bad config: nothing written
+        out = make_output_folder(out_dir)
+        with OutputLock(out):
+            prepare_out_dir(out, overwrite=overwrite)
+            status = StatusWriter(out, {"scenario": scenario.name})
+            try:
+                status.start()
+                write_resolved_config(scenario, out / RESOLVED_FILE)
+                write_json(out / SUMMARY_FILE, {"scenario": scenario.name, "complete": False,
+                                                "reason": "running", **_provenance(status)})
+                log = RunLog(out / LOG_DIR, flush_every=scenario.output.flush_every)
+                state = sim.new_state()
+            except BaseException as exc:        # start-up error or signal: say so, final
+                signals.hold()
+                reason = (f"{exc} during start-up" if isinstance(exc, Interrupted) else
+                          f"start-up failed: {type(exc).__name__}: {exc}")
+                summary = {"scenario": scenario.name, "complete": False, "reason": reason,
+                           **_provenance(status)}
+                write_json(out / SUMMARY_FILE, summary)
+                status.finish(end_state(False, reason), reason)
+                if isinstance(exc, Interrupted):
+                    return RunResult(out, summary)
+                raise
+            return _run_loop(sim, state, out, log, status, signals, progress=progress,
+                             html=html, view=view, on_row=on_row)
 
-        try:
-            viewer = LiveViewer(sim.biped, scenario.terrain, stream=sys.stderr)
-        except ViewerError as exc:
-            warnings.warn(f"live view not available ({exc}); running without it", stacklevel=2)
-    bar = RunProgress(progress, scenario.name, scenario.sim.duration)
+
+def _provenance(status: StatusWriter) -> dict:
+    return {k: status.data[k] for k in ("package_version", "proxsuite_build")}
+
+
+def _run_loop(sim, state, out: Path, log: RunLog, status: StatusWriter, signals: RunSignals, *,
+              progress: bool, html: bool, view: bool,
+              on_row: Callable[[dict], None] | None) -> RunResult:
+    """The loop of :func:`run_scenario` once the folder is ready, then the summary (while
+    signals are held) and the figures."""
+    scenario = sim.scenario
+    viewer = None
     complete, reason = True, ""
     error: BaseException | None = None
     wall0 = time.perf_counter()
+    bar = None
     try:
-        with StopOnSignal(state):
+        signals.attach(state)
+        if view:
+            # the viewer (meshcat, zmq) is imported only when asked for
+            from ..viz.meshcat import LiveViewer, ViewerError
+
             try:
-                for row in closed_loop(sim, state):
-                    log.append(row)
-                    if viewer is not None:
-                        viewer.update(row)
-                    if on_row is not None:
-                        on_row(row)
-                    bar.update(row["time"], time.perf_counter() - wall0,
-                               int(state.fall is not None))
-                reason = state.end_reason
-                complete = not reason.startswith("interrupted")
-            except KeyboardInterrupt:
-                complete, reason = False, "interrupted by SIGINT"
-            except PlantDivergedError as exc:
-                complete, reason = False, f"plant diverged: {exc}"
-            except GranularMpcError as exc:
-                complete, reason = False, f"{type(exc).__name__}: {exc}"
-            except BaseException as exc:  # unexpected: record it, then re-raise
-                complete, reason, error = False, f"{type(exc).__name__}: {exc}", exc
+                viewer = LiveViewer(sim.biped, scenario.terrain, stream=sys.stderr)
+            except ViewerError as exc:
+                warnings.warn(f"live view not available ({exc}); running without it",
+                              stacklevel=3)
+        bar = RunProgress(progress, scenario.name, scenario.sim.duration)
+        wall0 = time.perf_counter()
+        for row in closed_loop(sim, state):
+            log.append(row)
+            if viewer is not None:
+                viewer.update(row)
+            if on_row is not None:
+                on_row(row)
+            status.data["sim_time_s"] = row["time"]
+            bar.update(row["time"], time.perf_counter() - wall0, int(state.fall is not None))
+        reason = state.end_reason
+        complete = not reason.startswith("interrupted")
+    except KeyboardInterrupt as exc:
+        name = signals.first or getattr(exc, "signame", "SIGINT")
+        again = " (second signal: stopped at once)" if len(signals.received) > 1 else ""
+        complete, reason = False, f"interrupted by {name}{again}"
+    except PlantDivergedError as exc:
+        complete, reason = False, f"plant diverged: {exc}"
+    except GranularMpcError as exc:
+        complete, reason = False, f"{type(exc).__name__}: {exc}"
+    except BaseException as exc:  # unexpected: record it, then re-raise
+        complete, reason, error = False, f"{type(exc).__name__}: {exc}", exc
     finally:
+        signals.hold()           # from here to the final summary: signals are only noted
         wall = time.perf_counter() - wall0
-        bar.update(state.plant.t, wall, int(state.fall is not None), force=True)
-        bar.close()
-        log.close()
-        if viewer is not None:
-            viewer.close()
+        if bar is not None:
+            bar.update(state.plant.t, wall, int(state.fall is not None), force=True)
+            bar.close()
+        try:
+            log.close()
+        finally:
+            if viewer is not None:
+                viewer.close()
     try:
         log_df = read_log(out / LOG_DIR) if log.n_rows else None
     except OutputError:
         log_df = None
     summary = summarize(log_df, sim, state, wall_time_s=wall, complete=complete, reason=reason)
+    summary.update(_provenance(status))
     write_json(out / SUMMARY_FILE, summary)
+    status.finish(end_state(complete, reason), reason)
+    signals.release()
     if error is not None:
         raise error
-    plots, html_path = _figures(summary, log_df, sim, out, html)
+    try:
+        plots, html_path = _figures(summary, log_df, sim, out, html)
+    except KeyboardInterrupt as exc:
+        plots, html_path = [], None
+        summary["plots_error"] = f"figures skipped: {exc or 'interrupted'}"
     if "plots_error" in summary or "html_error" in summary:
         write_json(out / SUMMARY_FILE, summary)
     return RunResult(out, summary, tuple(plots), html_path)

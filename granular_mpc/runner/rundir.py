@@ -1,8 +1,9 @@
 """The run folder: its default name, preparing it for a run, the resolved scenario file.
 
 A run folder (``granular-mpc run --out DIR``) holds ``config.resolved.yaml``,
-``summary.json``, ``log/part-*.parquet``, ``plots/*.png`` and ``animation.html``; the
-names are those of :mod:`granular_mpc.columns`.
+``summary.json``, ``status.json``, ``log/part-*.parquet``, ``plots/*.png`` and
+``animation.html``; the names are those of :mod:`granular_mpc.columns`. A previous run's
+outputs are replaced only with ``overwrite`` (``--overwrite``); other files stay.
 """
 
 from __future__ import annotations
@@ -13,10 +14,10 @@ from pathlib import Path
 import yaml
 
 from .. import __version__
-from ..columns import HTML_FILE, LOG_DIR, PLOTS_DIR, RESOLVED_FILE, SUMMARY_FILE
+from ..columns import HTML_FILE, LOG_DIR, PLOTS_DIR, RESOLVED_FILE, STATUS_FILE, SUMMARY_FILE
 from ..config import ScenarioConfig
 from ..exceptions import OutputError
-from ..output import make_output_folder
+from ..output import make_output_folder, refuse_existing, remove_files
 from ..scenario import resolved_dict
 
 
@@ -31,24 +32,32 @@ def default_out_dir(scenario: ScenarioConfig, root: str | Path = "runs") -> Path
     return cand
 
 
-def prepare_out_dir(out_dir: str | Path) -> Path:
-    """Create the run folder (or reuse one), removing a previous run's outputs in it.
+def run_outputs(out_dir: str | Path) -> list[Path]:
+    """The files of a previous run in ``out_dir`` (those a run writes: ``summary.json``,
+    ``status.json``, ``config.resolved.yaml``, ``animation.html``, ``log/part-*``,
+    ``plots/*.png``)."""
+    out = Path(out_dir)
+    found = [out / SUMMARY_FILE, out / STATUS_FILE, out / RESOLVED_FILE, out / HTML_FILE]
+    found += list((out / LOG_DIR).glob("part-*.parquet")) + list((out / LOG_DIR).glob("part-*.tmp"))
+    found += list((out / PLOTS_DIR).glob("*.png"))
+    return [p for p in found if p.exists()]
 
-    Only the files a run writes are removed (``log/part-*.parquet``, ``summary.json``,
-    ``config.resolved.yaml``, ``plots/*.png``, ``animation.html``); anything else stays.
+
+def prepare_out_dir(out_dir: str | Path, overwrite: bool = False) -> Path:
+    """Create the run folder (or reuse one); a previous run's outputs in it are replaced
+    only with ``overwrite``.
+
+    Only the files a run writes are removed (:func:`run_outputs`); anything else stays.
+    Lock the folder first (:class:`~granular_mpc.output.OutputLock`) when another process
+    might write it.
 
     Raises:
-        OutputError: the folder cannot be created or written.
+        OutputError: the folder cannot be created or written, or holds a previous run and
+            not ``overwrite``.
     """
     out = make_output_folder(out_dir)
-    stale = [out / SUMMARY_FILE, out / RESOLVED_FILE, out / HTML_FILE]
-    stale += list((out / LOG_DIR).glob("part-*.parquet")) + list((out / LOG_DIR).glob("part-*.tmp"))
-    stale += list((out / PLOTS_DIR).glob("*.png"))
-    for p in stale:
-        try:
-            p.unlink(missing_ok=True)
-        except OSError as exc:
-            raise OutputError(f"cannot replace {p}: {exc.strerror or exc}") from None
+    remove_files(refuse_existing(out, run_outputs(out), what="a previous run",
+                                 overwrite=overwrite))
     return out
 
 
@@ -70,4 +79,4 @@ def write_resolved_config(scenario: ScenarioConfig, path: str | Path) -> Path:
     return path
 
 
-__all__ = ["default_out_dir", "prepare_out_dir", "write_resolved_config"]
+__all__ = ["default_out_dir", "prepare_out_dir", "run_outputs", "write_resolved_config"]

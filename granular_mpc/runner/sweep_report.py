@@ -40,13 +40,18 @@ def sweep_table(results: Sequence[Mapping[str, Any]]) -> pd.DataFrame:
             (``{"name", "params", "run_dir", "summary"}``).
 
     Returns:
-        One row per run: ``run``, ``run_dir``, the swept values, then every scalar of the
-        summary (nested values flattened with ``_``; ``notes`` left out). JSON nulls are
-        NaN in numeric columns; the plot's columns exist even if no run produced them.
+        One row per run: ``run``, ``state`` (``complete``, ``interrupted``, ``failed``,
+        ``killed``), ``run_dir``, the swept values, then every scalar of the summary
+        (nested values flattened with ``_``; ``notes`` left out). JSON nulls are NaN in
+        numeric columns; the plot's columns exist even if no run produced them.
     """
     rows = []
     for r in results:
-        row: dict[str, Any] = {"run": r["name"], "run_dir": r["run_dir"]}
+        s = r["summary"]
+        reason = str(s.get("reason", ""))
+        state = ("complete" if s.get("complete") else "killed" if reason.startswith("killed")
+                 else "interrupted" if reason.startswith("interrupted") else "failed")
+        row: dict[str, Any] = {"run": r["name"], "state": state, "run_dir": r["run_dir"]}
         row.update(r["params"])
         summary = dict(r["summary"])
         summary.pop("notes", None)
@@ -71,9 +76,10 @@ def sweep_table(results: Sequence[Mapping[str, Any]]) -> pd.DataFrame:
 def sweep_plot(table: pd.DataFrame, path: Path, reference_terrain: str = "rigid"):
     """CoT vs v/√(g h_CoM) of a sweep table (``plot_cot_vs_speed``), written to ``path``.
 
-    Uses the runs that did not fall and have a finite CoT; if every such run fell, the
-    runs with a finite CoT (up to their fall). Returns ``(path or None, ratio table,
-    note)`` — the note says which runs are shown.
+    Uses the complete runs (never an interrupted or failed one) that did not fall and
+    have a finite CoT; if every such run fell, the complete runs with a finite CoT (up to
+    their fall). Returns ``(path or None, ratio table, note)`` — the note says which runs
+    are shown.
     """
     # matplotlib is imported only when a plot is made
     from ..viz.plots import plot_cot_vs_speed
@@ -82,8 +88,10 @@ def sweep_plot(table: pd.DataFrame, path: Path, reference_terrain: str = "rigid"
                                   "commanded_speed_mps", "cot_ratio"])
     if table.empty or "h_com_m" not in table.columns:
         return None, empty, "no runs with a CoT: no plot"
-    cot = pd.to_numeric(table["cot"], errors="coerce")
-    finite = table[np.isfinite(cot.to_numpy(dtype=float))]
+    done = table[table["complete"].astype(bool)] if "complete" in table.columns else table
+    left_out = len(table) - len(done)
+    cot = pd.to_numeric(done["cot"], errors="coerce")
+    finite = done[np.isfinite(cot.to_numpy(dtype=float))]
     good = finite[~finite["fell"].astype(bool)]
     if not good.empty:
         use, note = good, f"{len(good)} of {len(table)} runs (runs that fell are left out)"
@@ -91,7 +99,10 @@ def sweep_plot(table: pd.DataFrame, path: Path, reference_terrain: str = "rigid"
         use, note = finite, (f"every run with a CoT fell: the plot shows those {len(finite)} "
                              "runs anyway (CoT up to the fall)")
     else:
-        return None, empty, "no run has a finite CoT (no forward progress): no plot"
+        return None, empty, ("no complete run has a finite CoT: no plot" if left_out else
+                             "no run has a finite CoT (no forward progress): no plot")
+    if left_out:
+        note += f"; {left_out} incomplete run(s) (interrupted or failed) left out"
     df = use.assign(h_com=use["h_com_m"].astype(float), cot=use["cot"].astype(float),
                     mean_speed_mps=use["mean_speed_mps"].astype(float))
     out = plot_cot_vs_speed(df, path, reference_terrain=reference_terrain)

@@ -21,6 +21,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..config import FootGeometry, GranularTerrainConfig, RigidTerrainConfig, RobotConfig
+from ..config.terrain import TrackTerrainConfig
 from ..exceptions import ConfigError
 from .closed_form import FLOAT, FootShape, lateral_capacity, sagittal_forces
 from .contact import CompiledContact, ContactData
@@ -28,6 +29,7 @@ from ..effects import Effect, get_effect
 from .granular import GRANULAR_PARAMS, granular_param_values, make_granular_law
 from .rft import Coefficients
 from .rigid import RIGID_PARAMS, make_rigid_law, rigid_param_values
+from .track import TrackTerrain, build_track
 
 
 @dataclass(frozen=True)
@@ -166,14 +168,20 @@ class TerrainModel:
         return np.array([c.zeta, math.radians(c.phi_s_deg), c.bulldozing_length, c.sole_shear_alpha])
 
 
-def build_terrain(config, robot: RobotConfig, *, extra_effects: Sequence = ()) -> TerrainModel:
+def build_terrain(config, robot: RobotConfig, *, extra_effects: Sequence = ()) -> TerrainModel | TrackTerrain:
     """Build the terrain model for ``robot``'s feet from a validated terrain config.
 
     Args:
-        config: a :class:`GranularTerrainConfig` or :class:`RigidTerrainConfig`.
+        config: a :class:`GranularTerrainConfig`, :class:`RigidTerrainConfig` or
+            :class:`~granular_mpc.config.terrain.TrackTerrainConfig` (then a
+            :class:`~.track.TrackTerrain` of one model per segment).
         robot: the robot config (sole geometry and number of slices).
-        extra_effects: more :class:`~granular_mpc.config.EffectSpec` (e.g. from the CLI).
+        extra_effects: more :class:`~granular_mpc.config.EffectSpec` (e.g. from the CLI);
+            on a track, added to every segment.
     """
+    if isinstance(config, TrackTerrainConfig):
+        return build_track(config, [build_terrain(s.terrain, robot, extra_effects=extra_effects)
+                                    for s in config.segments])
     foot = robot.foot
     n = foot.slices
     width = foot.width / n
@@ -203,4 +211,5 @@ def build_terrain(config, robot: RobotConfig, *, extra_effects: Sequence = ()) -
                         effects=tuple(effects))
 
 
-__all__ = ["TerrainModel", "build_terrain", "GranularTerrainConfig", "RigidTerrainConfig"]
+__all__ = ["TerrainModel", "build_terrain", "GranularTerrainConfig", "RigidTerrainConfig",
+           "TrackTerrainConfig", "TrackTerrain"]

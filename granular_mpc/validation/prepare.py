@@ -42,7 +42,7 @@ import pinocchio as pin
 
 from ..columns import (AXES, BASE_ANGULAR_VELOCITY, BASE_LINEAR_VELOCITY, BASE_POSITION,
                        BASE_QUATERNION, GRF_COLUMNS, INTRUSION_COLUMNS, STANCE, TIME,
-                       joint_columns)
+                       format_columns, joint_columns)
 from ..robot.model import SIDES, Biped
 from ..rotations import matrix_from_quat_wxyz
 from .dataformat import Dataset, stance_phases
@@ -109,6 +109,10 @@ class StanceWindow:
             surface (forward kinematics of the measured state + measured intrusion) [m].
         meas: measured channels (format-v1 names) → (n,) arrays.
         features: measured state variables for localisation → (n,) arrays.
+        columns: every numeric column of the data format on the scored rows, as measured
+            (``time``, ``q_*``, ``dq_*``, ``tau_*``, ``base_*``, ``grf_*``,
+            ``intrusion_*``) → (n,) arrays: what a sensor effect reads besides the
+            replayed channels.
     """
 
     index: int
@@ -128,6 +132,7 @@ class StanceWindow:
     touchdown_W: np.ndarray
     meas: dict
     features: dict = field(default_factory=dict)
+    columns: dict = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -405,7 +410,9 @@ def stance_windows(ds: Dataset, biped: Biped, *, contact_stiffness: float = 2.0e
                 row_start=r0, row_stop=b, time=t,
                 phase=100.0 * t / max(t_ph[-1] - t_ph[0], 1e-9),
                 q0=q_loc, v0=v0, tau=st.tau[k0:b - 1].copy(), feet=tuple(feet), origin=origin,
-                touchdown_W=np.array([c_W[0], c_W[1], surface_W]), meas=meas, features=feats))
+                touchdown_W=np.array([c_W[0], c_W[1], surface_W]), meas=meas, features=feats,
+                columns={c: df[c].to_numpy(dtype=float)[r0:b] for c in format_columns(J)
+                         if c != STANCE and c in df.columns}))
     return out
 
 

@@ -33,9 +33,9 @@ import numpy as np
 import pandas as pd
 from scipy.signal import butter, lfilter
 
-from ..columns import (BASE_ANGULAR_VELOCITY, BASE_LINEAR_VELOCITY, BASE_POSITION,
-                       BASE_QUATERNION, GRF_COLUMNS, INTRUSION_COLUMNS, STANCE, TIME,
-                       joint_columns)
+from ..columns import (BASE_ANGULAR_VELOCITY, BASE_COLUMNS, BASE_LINEAR_VELOCITY,
+                       BASE_POSITION, BASE_QUATERNION, GRF_COLUMNS, INTRUSION_COLUMNS,
+                       JOINT_PREFIXES, STANCE, TIME, joint_columns)
 from ..exceptions import ConfigError
 from ..rotations import quat_mul_rows_wxyz, quat_rows_wxyz_from_rotvec
 
@@ -84,6 +84,43 @@ def normalise_noise(noise: float | Mapping[str, float] | None) -> tuple[float, d
     if level < 0:
         raise ConfigError("noise level must be ≥ 0", key="noise.level")
     return level, {k: float(v) for k, v in items.items()}
+
+
+def noise_prefixes(joint_names: Sequence[str] | None = None) -> list[str]:
+    """The column prefixes a ``--noise PREFIX=STD`` may name: the column families
+    (``q_``, ``dq_``, ``tau_``, ``base_``, ``grf_``, ``intrusion_``) and, with
+    ``joint_names``, every noisy column itself."""
+    out = list(JOINT_PREFIXES) + ["base_", "grf_", "intrusion_"]
+    if joint_names is not None:
+        for kind in ("q", "dq", "tau"):
+            out += joint_columns(joint_names, kind)
+        out += list(BASE_COLUMNS) + list(GRF_COLUMNS) + list(INTRUSION_COLUMNS)
+    return out
+
+
+def check_noise_prefixes(white: Mapping[str, float],
+                         joint_names: Sequence[str] | None = None) -> None:
+    """Every per-column noise key must match at least one noisy column.
+
+    Without ``joint_names`` a key passes if it could start a column of a family
+    (``q_left`` could be ``q_left_knee``); with them, it must start an actual column.
+
+    Raises:
+        ConfigError: a key matches no column (names it and lists the allowed prefixes).
+    """
+    families = noise_prefixes(None)
+    columns = noise_prefixes(joint_names)[len(families):] if joint_names is not None else []
+    for key in white:
+        if joint_names is not None:
+            ok = any(c.startswith(key) for c in columns)
+        else:
+            ok = any(f.startswith(key) or key.startswith(f) for f in families)
+        if not ok:
+            allowed = ", ".join(families) + (", or a full column name such as "
+                                             f"{columns[0]}" if columns else
+                                             ", or a full column name")
+            raise ConfigError(f"noise prefix {key!r} matches no column of the data set",
+                              key="--noise", value=key, allowed=allowed)
 
 
 def add_noise(df: pd.DataFrame, joint_names: Sequence[str], level: float,
@@ -145,4 +182,5 @@ def add_noise(df: pd.DataFrame, joint_names: Sequence[str], level: float,
     return out
 
 
-__all__ = ["NOISE_MODEL", "normalise_noise", "add_noise"]
+__all__ = ["NOISE_MODEL", "normalise_noise", "add_noise", "noise_prefixes",
+           "check_noise_prefixes"]

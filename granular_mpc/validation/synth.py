@@ -30,6 +30,7 @@ here).
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -37,23 +38,23 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
-import yaml
 from threadpoolctl import threadpool_limits
 
 from ..columns import (BASE_COLUMNS, FOOT_SIDES, GRF_COLUMNS, INTRUSION_COLUMNS, JOINT_KINDS,
-                       META_FILE, STANCE, TIME, foot_column, format_columns, joint_columns)
-from ..config import EffectSpec, ScenarioConfig
+                       STANCE, TIME, foot_column, format_columns, joint_columns)
+from ..config import EffectSpec, ScenarioConfig, validate
 from ..control.gait import CommandRamp
 from ..dynamics import Plant
 from ..effects import (SensorContext, apply_sensor_effects, effect_info, geometry_theta,
                        joint_torque_function)
-from ..exceptions import ConfigError, GranularMpcError, OutputError
+from ..exceptions import ConfigError, GranularMpcError
 from ..parallel import map_tasks
 from ..runner import build_simulation, closed_loop
 from ..scenario import find_scenario, load_scenario, resolved_dict, scenario_from_dict
 from ..terrain import build_terrain
 from .dataformat import check_trials, load_dataset, write_dataset
-from .sensor_noise import NOISE_MODEL, add_noise, normalise_noise
+from .dataset_target import DatasetTarget, dataset_target
+from .sensor_noise import NOISE_MODEL, add_noise, check_noise_prefixes, normalise_noise
 
 #: contacts shorter than this many samples (a scuff of the swing foot) do not start a
 #: stance phase
@@ -95,7 +96,7 @@ def _scenario(scenario_or_name: ScenarioConfig | str | Path, overrides: Sequence
 def _specs(effects: Sequence[Any]) -> list[EffectSpec]:
     out = []
     for e in effects or ():
-        spec = e if isinstance(e, EffectSpec) else EffectSpec.model_validate(e)
+        spec = e if isinstance(e, EffectSpec) else validate(EffectSpec, e, source="effect")
         effect_info(spec.name)           # unknown names: one clear error
         out.append(spec)
     return out
@@ -260,12 +261,18 @@ def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Pat
                format: str = "csv", overrides: Sequence[str] = (),
                scenario_path: str | Path | None = None, warmup: float | None = None,
                settle: float = 0.4, workers: int | None = None,
-               description: str = "") -> SynthResult:
+               description: str = "", overwrite: bool = False) -> SynthResult:
     """Generate a measurement data set (format v1) by closed-loop walking of the plant.
+
+    The output folder must be new, empty, or hold a synthetic data set (``meta.yaml``
+    with a ``generator`` section) — which is replaced only with ``overwrite``. Measured
+    data (a ``meta.yaml`` without ``generator``) is never replaced, and a non-empty
+    folder without ``meta.yaml`` is refused (:func:`dataset_target`). The folder is
+    checked and locked before any trial runs.
 
     Args:
         scenario_or_name: a loaded scenario, or a scenario name / path (``sand_walk``).
-        out_dir: data set folder to write (a previous data set there is replaced).
+        out_dir: data set folder to write.
         speeds: commanded forward speeds [m/s], one trial each (default: the scenario's).
         steps: stance phases to record per trial (≈ 0.2 s each for the paper's gait);
             mutually exclusive with ``duration``. Default: 10.
@@ -285,9 +292,16 @@ def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Pat
         settle: see ``warmup`` [s].
         workers: processes for the trials (default: min(trials, CPUs)).
         description: free text for the meta.
+        overwrite: replace a synthetic data set already in ``out_dir``.
 
     Returns:
         :class:`SynthResult`.
+
+    Raises:
+        ConfigError: bad arguments (steps < 1, a speed outside ``command.speed``'s range,
+            a noise prefix that matches no column …).
+        OutputError: the folder holds measured data, something that is not a data set,
+            a synthetic data set and not ``overwrite``, or another process writes it.
     """
     t_wall = time.perf_counter()
     sc, path = _scenario(scenario_or_name, overrides)
@@ -298,12 +312,38 @@ def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Pat
         raise ConfigError("give steps or duration, not both", key="steps")
     if format not in ("csv", "parquet"):
         raise ConfigError(f"unknown format {format!r}", key="format", allowed="csv, parquet")
+    if steps is not None and int(steps) < 1:
+        raise ConfigError(f"must be at least 1, got {steps}", key="steps", value=steps)
+    if duration is not None and not (math.isfinite(float(duration)) and float(duration) > 0):
+        raise ConfigError(f"must be a positive number of seconds, got {duration}",
+                          key="duration", value=duration)
+    if int(repeats) < 1:
+        raise ConfigError(f"must be at least 1, got {repeats}", key="repeats", value=repeats)
     specs = _specs(effects)
     resolved = resolve_effects(specs)
     level, white = normalise_noise(noise)
+    check_noise_prefixes(white)
     speeds = [float(sc.command.speed)] if speeds is None else [float(v) for v in speeds]
     if not speeds:
         raise ConfigError("no speeds given", key="speeds")
+    for v in speeds:    # the range of command.speed (validated, unlike a model_copy)
+        validate(type(sc.command), {**sc.command.model_dump(), "speed": v}, source="speeds")
+    out = Path(out_dir)
+    with DatasetTarget(out, overwrite) as target:
+        result = _synthesize(sc, path, target, speeds=speeds, steps=steps, duration=duration,
+                             repeats=repeats, seed=seed, specs=specs, resolved=resolved,
+                             level=level, white=white, format=format,
+                             scenario_path=scenario_path, warmup=warmup, settle=settle,
+                             workers=workers, description=description)
+    return replace(result, wall_time_s=time.perf_counter() - t_wall)
+
+
+def _synthesize(sc: ScenarioConfig, path, target: DatasetTarget, *, speeds, steps, duration,
+                repeats, seed, specs, resolved, level, white, format, scenario_path, warmup,
+                settle, workers, description) -> SynthResult:
+    """The body of :func:`synthesize` once the arguments are checked and the folder is
+    locked."""
+    t_wall = time.perf_counter()
     half_period = 0.5 * sc.controller.gait.period
     if duration is None:
         duration = (10 if steps is None else int(steps)) * half_period + 2.5 * half_period
@@ -332,6 +372,7 @@ def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Pat
         raise KeyboardInterrupt
     results = list(run.results)
     joint_names = results[0]["joint_names"]
+    check_noise_prefixes(white, joint_names)
     fs = float(sc.log_rate_hz)
     trials: dict[str, pd.DataFrame] = {}
     entries: dict[str, dict] = {}
@@ -422,20 +463,22 @@ def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Pat
         meta["trials"] = {n: {**e, "file": f"{n}{suffix}"} for n, e in entries.items()}
         if not trials:
             raise GranularMpcError("synth recorded no usable trial: " + "; ".join(notes))
-    out = Path(out_dir)
-    _clear_previous(out)
-    write_dataset(out, meta, trials, format, overwrite=True)
+    out = target.folder
+    target.clear()
+    write_dataset(out, meta, trials, format)
     return SynthResult(out, {n: e["commanded_speed_mps"] for n, e in entries.items()}, n_st,
                        tuple(notes), time.perf_counter() - t_wall)
 
 
 def noisy_copy(src: str | Path, dst: str | Path, noise: float | Mapping[str, float], *,
-               seed: int = 0, format: str = "parquet") -> Path:
+               seed: int = 0, format: str = "parquet", overwrite: bool = False) -> Path:
     """Write a copy of data set ``src`` with sensor noise added (same model as
     :func:`synthesize`); ``generator.noise`` and ``generator.seed`` record it. Handy to
-    study one plant run at several noise levels."""
+    study one plant run at several noise levels. ``dst`` follows the rules of
+    :func:`synthesize` (``overwrite`` replaces a synthetic data set there)."""
     ds = load_dataset(src)
     level, white = normalise_noise(noise)
+    check_noise_prefixes(white, ds.joint_names)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 7919]))
     trials = {n: add_noise(df, ds.joint_names, level, white, rng, ds.meta.sample_rate_hz)
               for n, df in ds.trials.items()}
@@ -444,27 +487,12 @@ def noisy_copy(src: str | Path, dst: str | Path, noise: float | Mapping[str, flo
     gen["noise"] = {"level": level, **white}
     gen.setdefault("settings", {})["noise_seed"] = int(seed)
     meta["generator"] = gen
-    out = Path(dst)
-    _clear_previous(out)
-    return write_dataset(out, meta, trials, format, overwrite=True)
-
-
-def _clear_previous(folder: Path) -> None:
-    """Remove a previous data set's meta and listed trial files from ``folder``."""
-    meta = folder / META_FILE
-    if not meta.is_file():
-        return
-    try:
-        data = yaml.safe_load(meta.read_text(encoding="utf-8")) or {}
-        for entry in (data.get("trials") or {}).values():
-            f = folder / str(entry.get("file", ""))
-            if f.is_file() and f.parent == folder and f.suffix in (".csv", ".parquet"):
-                f.unlink()
-        meta.unlink()
-    except (OSError, yaml.YAMLError, AttributeError) as exc:
-        raise OutputError(f"cannot replace the data set in {folder}: {exc}") from None
+    with DatasetTarget(Path(dst), overwrite) as target:
+        target.clear()
+        return write_dataset(target.folder, meta, trials, format)
 
 
 __all__ = ["synthesize", "SynthResult", "NOISE_MODEL", "add_noise", "noisy_copy",
            "leading_foot_labels",
-           "build_plant_simulation", "resolve_effects", "normalise_noise"]
+           "build_plant_simulation", "resolve_effects", "normalise_noise", "dataset_target",
+           "DatasetTarget"]

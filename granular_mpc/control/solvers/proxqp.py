@@ -27,6 +27,10 @@ from ...exceptions import SolverError
 #: MPC solves). Chosen with the environment variable GRANULAR_MPC_PROXSUITE.
 PROXSUITE_BUILDS = ("native", "generic")
 
+#: ProxSuite dense backends by our name (:class:`ProxQPSolver`'s ``backend``).
+DENSE_BACKENDS = {"automatic": "Automatic", "primal_dual_ldlt": "PrimalDualLDLT",
+                  "primal_ldlt": "PrimalLDLT"}
+
 
 def load_proxsuite():
     """The ProxSuite binding module, loaded once per process.
@@ -173,6 +177,11 @@ class ProxQPSolver:
     Args:
         n, n_eq, n_in: fixed dimensions; ``box``: whether box bounds lb ≤ x ≤ ub are used.
         eps_abs: absolute tolerance; ``max_iter``: iteration cap per solve.
+        backend: ProxSuite's dense linear-algebra backend, one of :data:`DENSE_BACKENDS`:
+            ``automatic`` (ProxSuite's choice from the sizes), ``primal_dual_ldlt`` or
+            ``primal_ldlt``. Same problem and tolerance either way; the iteration count
+            differs (the MPC's QP: 2.9 warm-started iterations with ``primal_dual_ldlt``
+            against 6.0 with the ``primal_ldlt`` that ``automatic`` picks for it).
     """
 
     n: int
@@ -181,12 +190,14 @@ class ProxQPSolver:
     box: bool = False
     eps_abs: float = 1e-6
     max_iter: int = 200
+    backend: str = "automatic"
     _qp: object = field(default=None, repr=False)
     _initialised: bool = field(default=False, repr=False)
     _warm: bool = field(default=False, repr=False)
     _status_table: dict = field(default_factory=dict, repr=False)
     _warm_guess: object = field(default=None, repr=False)
     _cold_guess: object = field(default=None, repr=False)
+    _backend: object = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         px = self._px = load_proxsuite()
@@ -198,6 +209,10 @@ class ProxQPSolver:
                               out.PROXQP_DUAL_INFEASIBLE: QPStatus.DUAL_INFEASIBLE}
         self._warm_guess = px.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
         self._cold_guess = px.proxqp.InitialGuess.NO_INITIAL_GUESS
+        if self.backend not in DENSE_BACKENDS:
+            raise SolverError(f"ProxSuite dense backend {self.backend!r} unknown; allowed: "
+                              f"{', '.join(DENSE_BACKENDS)}")
+        self._backend = getattr(px.proxqp.dense.DenseBackend, DENSE_BACKENDS[self.backend])
         self._reset()
 
     def solve(self, p: QPProblem) -> QPSolution:
@@ -259,7 +274,8 @@ class ProxQPSolver:
         """A fresh ProxSuite object, cold-started (after a failure a bad previous result is
         no warm start)."""
         px = self._px
-        self._qp = px.proxqp.dense.QP(self.n, self.n_eq, self.n_in, self.box)
+        self._qp = px.proxqp.dense.QP(self.n, self.n_eq, self.n_in, self.box,
+                                      px.proxqp.dense.HessianType.Dense, self._backend)
         s = self._qp.settings
         s.eps_abs = self.eps_abs
         s.eps_rel = 0.0
@@ -270,4 +286,4 @@ class ProxQPSolver:
         self._warm = False
 
 
-__all__ = ["QPStatus", "QPProblem", "QPSolution", "ProxQPSolver"]
+__all__ = ["QPStatus", "QPProblem", "QPSolution", "ProxQPSolver", "DENSE_BACKENDS"]

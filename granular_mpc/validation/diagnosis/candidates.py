@@ -8,10 +8,15 @@ is one regression :class:`Column`. The calibration's own parameters are columns 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field, replace
 from typing import Mapping, Sequence
 
+import numpy as np
+
 from ...effects import EffectInfo, all_effects, effect_info
+from ..prepare import StanceWindow
+from ..replay.measurement import changes_replay, check_sensor_specs
 from ..replay.model import Variant, effect_variant
 
 #: the candidate name of the calibration's (nuisance) columns
@@ -79,10 +84,26 @@ class CandidateSet:
     Attributes:
         infos: effect name → its registry entry (only effects that can be switched off).
         columns: effect name → its magnitude columns.
+        replayed_sensors: sensor effects that change what a replay reads (``q_*``,
+            ``dq_*``, ``tau_*``, ``base_*``): their sensitivities need replays, like the
+            other kinds (:func:`check_sensor_candidates` sets them).
     """
 
     infos: Mapping[str, EffectInfo]
     columns: Mapping[str, tuple[Column, ...]]
+    replayed_sensors: frozenset = field(default_factory=frozenset)
+
+    def needs_replay(self, name: str) -> bool:
+        """Whether the candidate's sensitivity needs replays (every kind but a sensor
+        effect acting on the outputs only)."""
+        return self.kind(name) != "sensor" or name in self.replayed_sensors
+
+    def without(self, names: Sequence[str]) -> "CandidateSet":
+        """The set without the candidates ``names``."""
+        drop = set(names)
+        return replace(self, infos={n: i for n, i in self.infos.items() if n not in drop},
+                       columns={n: c for n, c in self.columns.items() if n not in drop},
+                       replayed_sensors=frozenset(self.replayed_sensors - drop))
 
     @property
     def keys(self) -> dict[str, list[str]]:
@@ -116,5 +137,49 @@ def build_candidates(names: Sequence[str] | None = None) -> CandidateSet:
     return CandidateSet(infos, {n: tuple(candidate_columns(i)) for n, i in infos.items()})
 
 
+def check_sensor_candidates(candidates: CandidateSet, window: StanceWindow,
+                            joint_names: Sequence[str]) -> CandidateSet:
+    """Try every sensor candidate on one window's columns (every column of the data
+    format) before any replay, and mark those that change a replay's inputs.
+
+    Raises:
+        ConfigError: a sensor effect reads a column the data do not have (the error names
+            the effect and the column) or returns one that is not a format column.
+    """
+    specs = [(i, i.resolve_params({})) for i in candidates.infos.values() if i.kind == "sensor"]
+    changed = check_sensor_specs(specs, window, joint_names)
+    return replace(candidates, replayed_sensors=frozenset(
+        n for n, cols in changed.items() if changes_replay(cols)))
+
+
+def dead_candidates(candidates: CandidateSet, sens: Mapping[str, np.ndarray],
+                    channels: Sequence[str]) -> dict[str, str]:
+    """Candidates whose every column has a zero (or undefined) sensitivity on the scored
+    channels: they cannot explain anything in these data (e.g. a sensor effect on a
+    column nobody scores, or one that skips columns it does not find). Name → warning."""
+    out = {}
+    for n, cols in candidates.columns.items():
+        peak = 0.0
+        for c in cols:
+            S = sens.get(c.key)
+            if S is not None and np.isfinite(S).any():
+                peak = max(peak, float(np.nanmax(np.abs(S))))
+        if not peak > 0.0:
+            out[n] = (f"candidate '{n}' ({candidates.kind(n)}) changes none of the scored "
+                      f"channels ({', '.join(channels[:3])} …) in these data: its regression "
+                      "column is all zero, so it was not ranked")
+    return out
+
+
+def drop_dead_candidates(candidates: CandidateSet, sens: Mapping[str, np.ndarray],
+                         channels: Sequence[str]) -> tuple[CandidateSet, tuple[str, ...]]:
+    """:func:`dead_candidates` removed from the set, each with a ``UserWarning``."""
+    dead = dead_candidates(candidates, sens, channels)
+    for msg in dead.values():
+        warnings.warn(msg, UserWarning, stacklevel=2)
+    return candidates.without(list(dead)), tuple(dead.values())
+
+
 __all__ = ["CALIBRATION", "Column", "candidate_columns", "variant_for", "CandidateSet",
-           "build_candidates"]
+           "build_candidates", "check_sensor_candidates", "dead_candidates",
+           "drop_dead_candidates"]

@@ -78,15 +78,15 @@ def refine_replays(problem: Problem, pool: ReplayPool, res: Residuals, candidate
                 step = -step
             v[c.key] = cur + step
             steps[c.key] = step
-            if candidates.kind(c.candidate) != "sensor":
+            if candidates.needs_replay(c.candidate):
                 variants[c.key] = variant_with(v, theta_nuis)
         out = pool.run(variants)
         Rc = residual_cube(windows, out["cur"], channels, edges)
         Pc = pred_cube(windows, out["cur"], channels, edges)
         S = {}
         for c in cols:
-            if candidates.kind(c.candidate) == "sensor":
-                S[c.key] = sens[c.key]       # a measurement map: its base sensitivity
+            if not candidates.needs_replay(c.candidate):
+                S[c.key] = sens[c.key]       # a map of the outputs: its base sensitivity
             else:
                 S[c.key] = guard_jumps((pred_cube(windows, out[c.key], channels, edges) - Pc)
                                        / steps[c.key], gkeys)[0]

@@ -19,7 +19,7 @@ from ...output import make_output_folder
 from ..dataformat import load_dataset
 from ..replay.pool import ReplayPool
 from .calibration import calibrate_model
-from .candidates import build_candidates
+from .candidates import build_candidates, check_sensor_candidates, drop_dead_candidates
 from .localise import localise_models, where_summary
 from .problem import load_problem
 from .refine import refine
@@ -29,7 +29,7 @@ from .residuals import compute_residuals, replay_rmse
 from .result import (CalibrationReport, Diagnosis, DesignSummary, LocalizationReport,
                      NEffFactor, Recommended)
 from .screen import screen, screening_design
-from .verdict import VerdictInputs, decide
+from .verdict import VerdictInputs, best_candidate_statement, decide
 
 
 def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
@@ -77,6 +77,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     out = make_output_folder(out_dir) if out_dir is not None else None
     cands = build_candidates(candidates)
     problem = load_problem(data_dir, terrain=terrain, sim=sim, phase_bins=phase_bins, dataset=ds)
+    # every sensor candidate tried on the data's columns before any replay
+    cands = check_sensor_candidates(cands, problem.windows[0], problem.joint_names)
     timing["prepare"] = _time.perf_counter() - t_start
 
     t0 = _time.perf_counter()
@@ -85,6 +87,7 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     with ReplayPool(cal.replay_model, problem.windows, workers=workers) as pool:
         t0 = _time.perf_counter()
         res = compute_residuals(problem, cands, cal, pool)
+        cands, warns = drop_dead_candidates(cands, res.sens, problem.channels)
         timing["replays"] = _time.perf_counter() - t0
         t0 = _time.perf_counter()
         sd = screening_design(problem, cands, cal.nuisance, res, seed=seed)
@@ -103,7 +106,9 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
                           ref.final_preds if ref.selected else None, n_fitted, seed=seed)
     timing["localize"] = _time.perf_counter() - t0
     theta = dict(ref.theta) if ref.selected else dict(loc.theta_linear)
-    verdict = decide(VerdictInputs(ref.selected, ref.ranking, ref.refined_heldout, loc.after))
+    vin = VerdictInputs(ref.selected, ref.ranking, ref.refined_heldout, loc.after, loc.before,
+                        ref.acceptance, scr.indistinguishable)
+    verdict = decide(vin)
     reg = scr.regression
     design = DesignSummary(
         len(problem.windows), problem.n_trials, problem.channels, phase_bins, int(reg.y.size),
@@ -123,7 +128,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
                            tuple(where_summary(loc.after, 6)), loc.before.n_significant_cells,
                            loc.after.n_significant_cells, loc.before.n_major_cells,
                            loc.after.n_major_cells),
-        design, Recommended.for_fit(theta, ref.fitted), timing, (), out)
+        design, Recommended.for_fit(theta, ref.fitted), timing, (), warns, ref.acceptance,
+        best_candidate_statement(vin), out)
     if out is None:
         return diag
     figs = (make_figures(out, loc.before, loc.after, ref.ranking, problem.channels,

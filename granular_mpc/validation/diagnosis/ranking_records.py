@@ -57,6 +57,9 @@ class CandidateStats(Record):
             no bootstrap).
         significant: it passes every test.
         rank: 1-based, by held-out error reduction.
+        inclusion_shared_with: candidates that passed every other test and split the
+            bootstrap selections with it (together at least MIN_INCLUSION): the data
+            cannot tell them apart (:func:`~.screen.inclusion_ties`).
     """
 
     effect: str
@@ -73,6 +76,7 @@ class CandidateStats(Record):
     inclusion_probability: float | None
     significant: bool
     rank: int
+    inclusion_shared_with: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
 
 
 @dataclass(frozen=True)
@@ -105,6 +109,8 @@ class Ranked(CandidateStats):
         added: the effect was added to the model.
         linear_rank: rank of the first (linear) screening.
         refined_params: its refined parameter values when added.
+        not_added_because: why a refined contender was reported, not added (honest
+            acceptance, :mod:`.acceptance`).
     """
 
     refined_fits: tuple[RefinedFit, ...] = field(default=(), metadata=OMIT_EMPTY)
@@ -112,6 +118,7 @@ class Ranked(CandidateStats):
     added: bool = False
     linear_rank: int = 0
     refined_params: Mapping[str, float] | None = field(default=None, metadata=OMIT_NONE)
+    not_added_because: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
 
     def dominant_param(self) -> str:
         """The fitted parameter furthest from its neutral value (relative to its range;

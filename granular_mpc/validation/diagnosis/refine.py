@@ -1,7 +1,9 @@
 """Stage 4, refine: add effects one at a time — the best significant contenders are refined
-by Gauss–Newton replays, the one with the lower AICc of its replayed residual is added, the
-others are re-tested conditionally on the refined model — then the final ranking and the
-refined model's held-out statistics (``docs/validation.md`` §3.3)."""
+by Gauss–Newton replays, the one with the lower AICc of its replayed residual that passes
+honest acceptance (:mod:`.acceptance`: its replays improve its credited channels, its
+coefficient is physical) is added, the others are re-tested conditionally on the refined
+model — then the final ranking and the refined model's held-out statistics
+(``docs/validation.md`` §3.3)."""
 
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ from typing import Mapping
 import numpy as np
 
 from ..replay.pool import ReplayPool
+from .acceptance import Acceptance, judge
 from .calibration import CalibrationStage, nuisance_columns
 from .candidates import CandidateSet
 from .cubes import residual_cube
@@ -43,6 +46,8 @@ class Refinement:
         ranking: every candidate, the added ones first.
         steps: one record per addition.
         refined_heldout: held-out statistics of the refined model (None: nothing added).
+        acceptance: the acceptance decision of every refined contender (:mod:`.acceptance`),
+            in the order they were judged.
     """
 
     selected: tuple[str, ...]
@@ -52,6 +57,7 @@ class Refinement:
     ranking: tuple[Ranked, ...]
     steps: tuple[SelectionStep, ...]
     refined_heldout: RefinedHeldout | None
+    acceptance: tuple[Acceptance, ...] = ()
 
 
 def _values(fitted: Mapping[str, Mapping[str, float]], candidates: CandidateSet,
@@ -86,6 +92,8 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
     final_preds = res.base_preds
     stats = list(scr.ranking)
     steps: list[SelectionStep] = []
+    acceptance: list[Acceptance] = []
+    rejected: set[str] = set()
     refined_fits: dict[str, list[RefinedFit]] = {r.effect: [] for r in scr.ranking}
     conditional: dict[str, list[ConditionalResult]] = {r.effect: [] for r in scr.ranking}
 
@@ -99,7 +107,8 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
         return aicc(float(y_ @ y_), y_.size * d_.n_eff_factor, k_), float(y_ @ y_)
 
     while len(selected) < max_effects:
-        contenders = [r for r in stats if r.significant and r.effect not in selected]
+        contenders = [r for r in stats if r.significant and r.effect not in selected
+                      and r.effect not in rejected]
         contenders = contenders[:max_contenders]
         if not contenders:
             break
@@ -118,13 +127,25 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
             refined_fits[r.effect].append(RefinedFit(tuple(selected), score, rss,
                                                      dict(fit.fitted[r.effect])))
         tried.sort(key=lambda t: t[0])
-        _, best, fit, its = tried[0]
+        chosen = None
+        for _, cand, fit, its in tried:       # by AICc; the first that passes is added
+            sel = selected + [cand.effect]
+            if its < refine_iterations:       # finish its refinement
+                fit = refine_replays(problem, pool, res, candidates, sel,
+                                     _values(fit.fitted, candidates, sel),
+                                     nuisance_columns(fit.theta),
+                                     iterations=refine_iterations - its)
+            acc = judge(windows, channels, res.sigma, candidates.infos[cand.effect],
+                        fit.fitted[cand.effect], final_preds, fit.preds)
+            acceptance.append(acc)
+            if acc.accepted:
+                chosen = (cand, fit)
+                break
+            rejected.add(cand.effect)
+        if chosen is None:
+            continue                          # the next significant candidates, if any
+        best, fit = chosen
         selected.append(best.effect)
-        if its < refine_iterations:          # finish the winner's refinement
-            fit = refine_replays(problem, pool, res, candidates, selected,
-                                 _values(fit.fitted, candidates, selected),
-                                 nuisance_columns(fit.theta),
-                                 iterations=refine_iterations - its)
         fitted, theta_final, final_preds = fit.fitted, dict(fit.theta), fit.preds
         step = dict(added=best.effect, contenders=tuple(t[1].effect for t in tried),
                     contender_aicc=tuple(t[0] for t in tried), refine=fit.log)
@@ -154,16 +175,20 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
                                                            r.heldout_error_reduction,
                                                            r.significant))
     return Refinement(tuple(selected), fitted, theta_final, tuple(final_preds),
-                      _final_ranking(scr.ranking, selected, fitted, refined_fits, conditional),
+                      _final_ranking(scr.ranking, selected, fitted, refined_fits, conditional,
+                                     acceptance),
                       tuple(steps),
                       _refined_heldout(problem, candidates, res, scr, selected, fitted,
-                                       final_preds) if selected else None)
+                                       final_preds) if selected else None,
+                      tuple(acceptance))
 
 
-def _final_ranking(ranking, selected, fitted, refined_fits, conditional) -> tuple[Ranked, ...]:
+def _final_ranking(ranking, selected, fitted, refined_fits, conditional,
+                   acceptance=()) -> tuple[Ranked, ...]:
     """The added effects (in the order the refined fits chose them), then the others by
     their screening held-out error reduction."""
     order = {n: i for i, n in enumerate(selected)}
+    why = {a.effect: a.reasons for a in acceptance if not a.accepted}
     entries = sorted(ranking, key=lambda e: (order.get(e.effect, len(order)), e.rank))
     out = []
     for i, e in enumerate(entries):
@@ -172,7 +197,8 @@ def _final_ranking(ranking, selected, fitted, refined_fits, conditional) -> tupl
         out.append(Ranked(**base, refined_fits=tuple(refined_fits[e.effect]),
                           conditional=tuple(conditional[e.effect]), added=e.effect in selected,
                           linear_rank=e.rank,
-                          refined_params=dict(fitted[e.effect]) if e.effect in fitted else None))
+                          refined_params=dict(fitted[e.effect]) if e.effect in fitted else None,
+                          not_added_because=tuple(why.get(e.effect, ()))))
     return tuple(out)
 
 

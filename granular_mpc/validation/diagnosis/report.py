@@ -120,16 +120,37 @@ def _calibration_lines(d: Diagnosis) -> list[str]:
     return lines
 
 
+def coefficient_text(r: Ranked) -> str:
+    """The main coefficient, each number with its own label: the refined value (when the
+    candidate was refined) and the screening estimate with its bootstrap interval (the
+    interval belongs to the screening estimate, not to the refined value)."""
+    main = r.dominant_param()
+    p = r.params.get(main)
+    unit = f" {p.unit}" if p is not None and p.unit else ""
+    if p is None:
+        return main
+    ci = (f" [{p.boot_ci_lo:.4g}, {p.boot_ci_hi:.4g}]" if p.boot_ci_lo is not None else "")
+    screening = f"screening estimate {p.value:.4g}{ci}{unit}"
+    refined = (r.refined_params or {}).get(main)
+    if refined is None:
+        return f"{main}: {screening}"
+    return f"{main}: refined value {refined:.4g}{unit}; {screening}"
+
+
 def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
     """The one-page ``report.md``."""
     v = d.verdict
     eq = d.calibration.equation_error
     lines = [f"# Diagnosis of `{d.data}`", "",
-             f"**Verdict ({v.status.replace('_', ' ')}):** {v.text}", "",
-             "## Calibration (own parameters)", "",
-             "| parameter | before | equation error | 95 % CI (Gauss–Newton) "
-             "| 95 % CI (trial bootstrap) | after replay refit |",
-             "|---|---|---|---|---|---|"]
+             f"**Verdict ({v.status.replace('_', ' ')}):** {v.text}", ""]
+    if d.best_candidate:
+        lines += [f"**Best candidate:** {d.best_candidate}", ""]
+    if d.warnings:
+        lines += ["**Warnings:**", ""] + [f"* {w}" for w in d.warnings] + [""]
+    lines += ["## Calibration (own parameters)", "",
+              "| parameter | before | equation error | 95 % CI (Gauss–Newton) "
+              "| 95 % CI (trial bootstrap) | after replay refit |",
+              "|---|---|---|---|---|---|"]
     lines += _calibration_lines(d)
     lines += ["", f"{eq.n_samples} sinking samples from {eq.n_stances} stances; "
               f"force residual {eq.rmse_before:.2f} N → {eq.rmse_after:.2f} N. "
@@ -138,17 +159,23 @@ def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
               "| rank | effect | kind | held-out error reduction | ΔAICc | inclusion | main coefficient | added |",
               "|---|---|---|---|---|---|---|---|"]
     for r in d.ranking:
-        main = r.dominant_param()
-        p = r.params.get(main)
-        val = r.value_of(main)
-        ci = (f" [{p.boot_ci_lo:.3g}, {p.boot_ci_hi:.3g}]"
-              if p is not None and p.boot_ci_lo is not None else "")
         inc = r.inclusion_probability
+        added = "**yes**" if r.added else ("reported, not added" if r.not_added_because else "no")
         lines.append(f"| {r.rank} | {r.effect} | {r.kind} | "
                      f"{100 * r.heldout_error_reduction:.1f} % | {r.delta_aicc:.0f} | "
-                     f"{'–' if inc is None else f'{inc:.2f}'} | {main} = {val:.4g}{ci} "
-                     f"{p.unit if p is not None else ''} | "
-                     f"{'**yes**' if r.added else 'no'} |")
+                     f"{'–' if inc is None else f'{inc:.2f}'} | {coefficient_text(r)} | "
+                     f"{added} |")
+    if d.acceptance:
+        lines += ["", "## Acceptance of the refined contenders", "",
+                  "| effect | added | credited channels: replay RMSE before → after | "
+                  "coefficients | why not added |", "|---|---|---|---|---|"]
+        for a in d.acceptance:
+            ch = ", ".join(f"{c} {x.before:.3g} → {x.after:.3g} {x.unit}"
+                           for c, x in a.credited_channels.items()) or "–"
+            co = "; ".join(f"{k.text} ({k.status})" if k.status != "ok" else k.text
+                           for k in a.coefficients) or "–"
+            lines.append(f"| {a.effect} | {'yes' if a.accepted else 'no'} | {ch} | {co} | "
+                         f"{'; '.join(a.reasons) or '–'} |")
     if d.indistinguishable:
         lines += ["", "## Candidates the data cannot tell apart", ""]
         for g in d.indistinguishable:
@@ -179,4 +206,4 @@ def write_outputs(d: Diagnosis, figs: Sequence[Path]) -> None:
     (out / REPORT_FILE).write_text(markdown(d, figs), encoding="utf-8")
 
 
-__all__ = ["figures", "markdown", "write_outputs", "FIGURE_DPI"]
+__all__ = ["figures", "markdown", "write_outputs", "coefficient_text", "FIGURE_DPI"]

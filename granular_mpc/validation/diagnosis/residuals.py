@@ -10,9 +10,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ...effects import SensorContext, apply_sensor_effects
 from ..prepare import StanceWindow, channel_unit
 from ..replay.model import Variant
+from ..replay.outputs import apply_variant_sensors
 from ..replay.pool import ReplayPool
 from .calibration import CalibrationStage
 from .candidates import CandidateSet, variant_for
@@ -138,27 +138,32 @@ class Residuals:
 def sensor_sensitivity(problem: Problem, info, col, base_preds: Sequence[dict],
                        Pb: np.ndarray) -> np.ndarray:
     """A sensor column's sensitivity: its measurement map applied to the calibrated
-    replay's outputs (no replay)."""
+    replay's outputs (no replay; for a sensor effect on the outputs only). The effect sees
+    every column of the data format: the replayed channels and the window's measured
+    columns for the others."""
     p = info.neutral_params()
     p[col.param] = col.neutral + col.step
+    variant = Variant(sensors=((info, p),))
     shifted = []
     for w, pr in zip(problem.windows, base_preds):
-        ctx = SensorContext(np.full(w.n, w.side, dtype=object), w.time, tuple(problem.joint_names))
-        shifted.append(apply_sensor_effects({c: pr[c] for c in problem.channels}, [(info, p)], ctx))
+        shifted.append(apply_variant_sensors({c: pr[c] for c in problem.channels}, variant, w,
+                                             problem.joint_names))
     return (pred_cube(problem.windows, shifted, problem.channels, problem.edges) - Pb) / col.step
 
 
 def compute_residuals(problem: Problem, candidates: CandidateSet, cal: CalibrationStage,
                       pool: ReplayPool) -> Residuals:
-    """Replay the calibrated model, its calibration columns and every non-sensor
-    candidate column at its nominal step; bin, difference and guard the results."""
+    """Replay the calibrated model, its calibration columns and every candidate column
+    that needs a replay (:meth:`~.candidates.CandidateSet.needs_replay`) at its nominal
+    step (a sensor effect on the outputs only: its map on the calibrated replay); bin,
+    difference and guard the results."""
     windows, channels, edges = problem.windows, problem.channels, problem.edges
     base = Variant(theta=dict(cal.theta), label="calibrated")
     variants = {"base": base}
     for col in cal.nuisance:
         variants[col.key] = base.with_theta(**{col.param: col.neutral + col.step})
     for n, info in candidates.infos.items():
-        if info.kind == "sensor":
+        if not candidates.needs_replay(n):
             continue
         for col in candidates.columns[n]:
             variants[col.key] = variant_for(info, {col.param: col.neutral + col.step}, base)
@@ -170,7 +175,7 @@ def compute_residuals(problem: Problem, candidates: CandidateSet, cal: Calibrati
     for n, cols in candidates.columns.items():
         info = candidates.infos[n]
         for col in cols:
-            if info.kind == "sensor":
+            if not candidates.needs_replay(n):
                 sens[col.key] = sensor_sensitivity(problem, info, col, preds["base"], Pb)
             else:
                 sens[col.key] = (pred_cube(windows, preds[col.key], channels, edges) - Pb) / col.step

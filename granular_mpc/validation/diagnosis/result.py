@@ -14,9 +14,10 @@ from typing import Any, Mapping
 
 from ...output import json_safe
 from ..calibrate import Calibration
+from .acceptance_records import Acceptance, ChannelChange, CoefficientCheck
 from .localization_records import Localization
 from .ranking_records import Ranked
-from .records import NOT_JSON, OMIT_NONE, Record
+from .records import NOT_JSON, OMIT_EMPTY, OMIT_NONE, Record
 from .thresholds import (LARGE_HELDOUT_REDUCTION, MAX_DELTA_AICC, MIN_EFFECT_SIZE,
                          MIN_HELDOUT_REDUCTION, MIN_INCLUSION, MIN_STANCE_REDUCTION, T_CELL)
 
@@ -39,23 +40,14 @@ class Thresholds(Record):
 
 @dataclass(frozen=True)
 class Verdict(Record):
-    """``missing_effect``, ``unexplained_structure`` or ``no_significant_missing_effect``,
+    """``missing_effect``, ``partially_explained`` (something added, but structure that
+    flagged it remains), ``unexplained_structure`` or ``no_significant_missing_effect``,
     the sentence that explains it and the effects added (in order)."""
 
     status: str
     text: str
     added: tuple[str, ...]
     thresholds: Thresholds = field(default_factory=Thresholds)
-
-
-@dataclass(frozen=True)
-class ChannelChange(Record):
-    """One channel's error before and after the added effects (channel units)."""
-
-    before: float
-    after: float
-    reduction: float
-    unit: str
 
 
 @dataclass(frozen=True)
@@ -268,6 +260,11 @@ class Diagnosis(Record):
         recommended: the next step.
         timing_s: seconds per stage.
         figures: figure file names (in ``out_dir``).
+        warnings: what the user should know about the run (candidates that could not be
+            ranked, …).
+        acceptance: the honest-acceptance decision of every refined contender.
+        best_candidate: for the best candidate, whether it is the answer or only the
+            closest proxy, in words (empty: no candidate).
         out_dir: where it was written (None: not written).
     """
 
@@ -285,6 +282,9 @@ class Diagnosis(Record):
     recommended: Recommended
     timing_s: Mapping[str, float] = field(default_factory=dict)
     figures: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
+    acceptance: tuple[Acceptance, ...] = field(default=(), metadata=OMIT_EMPTY)
+    best_candidate: str = ""
     out_dir: Path | None = field(default=None, metadata=NOT_JSON)
 
     @property
@@ -339,7 +339,8 @@ def load_diagnosis(path: str | Path) -> Diagnosis:
     return Diagnosis.from_json(p.read_text(encoding="utf-8"), p.parent)
 
 
-__all__ = ["Diagnosis", "Verdict", "Thresholds", "ChannelChange", "RefinedHeldout",
+__all__ = ["Diagnosis", "Verdict", "Thresholds", "ChannelChange", "Acceptance",
+           "CoefficientCheck", "RefinedHeldout",
            "IndistinguishablePair", "CalibrationReport", "LocalizationReport",
            "RefineIteration", "ConditionalRow", "SelectionStep", "NEffFactor", "DesignSummary",
            "Recommended", "FittedParameters", "load_diagnosis", "readable_values",

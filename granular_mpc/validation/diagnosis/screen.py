@@ -27,6 +27,10 @@ from .thresholds import (FEATURE_EXPERIMENTS, LARGE_HELDOUT_REDUCTION, MAX_DELTA
 
 #: leading candidates whose contributions correlate at least this much are indistinguishable
 INDISTINGUISHABLE_CORRELATION = 0.9
+#: a candidate taking at least this share of the bootstrap selections shares a decision
+MIN_SHARED_INCLUSION = 0.25
+#: … when the leader's inclusion is below MIN_INCLUSION + this (a near tie)
+NEAR_TIE = 0.2
 
 
 def practically_large(heldout_error_reduction: float, effect_size: float,
@@ -107,15 +111,56 @@ def candidate_stats(reg: Regression, base_keys: Sequence[str],
                 vals = col.neutral + bp[:, k]
                 r["params"][col.param]["boot_ci_lo"] = float(np.percentile(vals, 2.5))
                 r["params"][col.param]["boot_ci_hi"] = float(np.percentile(vals, 97.5))
-        significant = bool(r["heldout_error_reduction"] >= MIN_HELDOUT_REDUCTION
-                           and r["delta_aicc"] <= MAX_DELTA_AICC
-                           and practically_large(r["heldout_error_reduction"], r["effect_size"],
-                                                 r["heldout_error_reduction_stance"])
-                           and (inclusion if B else 1.0) >= MIN_INCLUSION)
         r["params"] = {p: ParamEstimate(**v) for p, v in r["params"].items()}
-        out.append(dict(r, inclusion_probability=inclusion, significant=significant))
+        out.append(dict(r, inclusion_probability=inclusion,
+                        significant=passes_but_inclusion(r) and (inclusion if B else 1.0)
+                        >= MIN_INCLUSION))
     out.sort(key=lambda r: -r["heldout_error_reduction"])
+    if B:
+        share_inclusion(out)
     return [CandidateStats(**r, rank=i + 1) for i, r in enumerate(out)]
+
+
+def passes_but_inclusion(r: Mapping) -> bool:
+    """The held-out, AICc and practical tests (every test but the bootstrap inclusion)."""
+    return bool(r["heldout_error_reduction"] >= MIN_HELDOUT_REDUCTION
+                and r["delta_aicc"] <= MAX_DELTA_AICC
+                and practically_large(r["heldout_error_reduction"], r["effect_size"],
+                                      r["heldout_error_reduction_stance"]))
+
+
+def share_inclusion(rows: list[dict]) -> None:
+    """Candidates that pass every test but the inclusion and split the bootstrap
+    selections between them (each ≥ MIN_SHARED_INCLUSION, together ≥ MIN_INCLUSION, the
+    leader below MIN_INCLUSION + NEAR_TIE) are one decision the data cannot make: each
+    row gets ``inclusion_shared_with``, and when none of them passes alone, the one with
+    the largest held-out reduction becomes significant (the replays of the refinement
+    then choose). Adding an unrelated candidate that takes some selections can then no
+    longer undo another's acceptance. ``rows`` sorted by held-out reduction, changed in
+    place."""
+    group = [r for r in rows if passes_but_inclusion(r)
+             and (r["inclusion_probability"] or 0.0) >= MIN_SHARED_INCLUSION]
+    if len(group) < 2:
+        return
+    incs = [r["inclusion_probability"] for r in group]
+    if sum(incs) < MIN_INCLUSION or max(incs) >= MIN_INCLUSION + NEAR_TIE:
+        return
+    names = [r["effect"] for r in group]
+    for r in group:
+        r["inclusion_shared_with"] = tuple(n for n in names if n != r["effect"])
+    if not any(r["significant"] for r in group):
+        group[0]["significant"] = True
+
+
+def inclusion_ties(ranking: Sequence[CandidateStats]) -> list[tuple[str, str]]:
+    """The pairs of candidates that split the bootstrap selections (:func:`share_inclusion`)."""
+    out = []
+    for r in ranking:
+        for other in r.inclusion_shared_with:
+            pair = (r.effect, other)
+            if (other, r.effect) not in out and pair not in out:
+                out.append(pair)
+    return out
 
 
 def separating_experiment(a: str, b: str, reg: Regression, cand_keys: Mapping[str, list[str]],
@@ -158,7 +203,8 @@ def indistinguishable(reg: Regression, base_keys: Sequence[str],
                       cand_keys: Mapping[str, list[str]], ranking: Sequence[CandidateStats],
                       windows: Sequence[StanceWindow], infos: Mapping,
                       reg_stance: Regression) -> list[IndistinguishablePair]:
-    """Pairs of leading candidates whose fitted contributions are nearly collinear."""
+    """Pairs of leading candidates whose fitted contributions are nearly collinear, and
+    every pair that split the bootstrap selections in a near tie (:func:`inclusion_ties`)."""
     if not ranking or ranking[0].heldout_error_reduction <= 0:
         return []
     base_keys = list(base_keys)
@@ -175,18 +221,29 @@ def indistinguishable(reg: Regression, base_keys: Sequence[str],
             v = v - Xn @ np.linalg.lstsq(Xn, v, rcond=None)[0]
         return v
 
-    v0 = contribution(top.effect)
+    by_name = {r.effect: r for r in ranking}
+
+    def correlation(a, b):
+        va, vb = contribution(a), contribution(b)
+        den = float(np.linalg.norm(va) * np.linalg.norm(vb))
+        return float(va @ vb / den) if den > 0 else 0.0
+
+    def pair(a, b, corr):
+        return IndistinguishablePair(
+            (a, b), corr, (by_name[a].heldout_error_reduction, by_name[b].heldout_error_reduction),
+            separating_experiment(a, b, reg_stance, cand_keys, windows, infos))
+
     out = []
     for r in contenders:
-        v1 = contribution(r.effect)
-        den = float(np.linalg.norm(v0) * np.linalg.norm(v1))
-        corr = float(v0 @ v1 / den) if den > 0 else 0.0
+        corr = correlation(top.effect, r.effect)
         if abs(corr) >= INDISTINGUISHABLE_CORRELATION:
-            out.append(IndistinguishablePair(
-                (top.effect, r.effect), corr,
-                (top.heldout_error_reduction, r.heldout_error_reduction),
-                separating_experiment(top.effect, r.effect, reg_stance, cand_keys, windows,
-                                      infos)))
+            out.append(pair(top.effect, r.effect, corr))
+    # near-tie bootstrap decisions are indistinguishable whatever their correlation
+    seen = {frozenset(p.effects) for p in out}
+    for a, b in inclusion_ties(ranking):
+        if frozenset((a, b)) not in seen:
+            out.append(pair(a, b, correlation(a, b)))
+            seen.add(frozenset((a, b)))
     return out
 
 
@@ -302,4 +359,5 @@ def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, 
 
 __all__ = ["Screening", "ScreeningDesign", "screening_design", "screen", "candidate_stats",
            "practically_large", "indistinguishable", "separating_experiment", "channel_heldout",
-           "INDISTINGUISHABLE_CORRELATION"]
+           "INDISTINGUISHABLE_CORRELATION", "passes_but_inclusion", "share_inclusion",
+           "inclusion_ties", "MIN_SHARED_INCLUSION", "NEAR_TIE"]

@@ -8,14 +8,19 @@ function (in its own module if it needs more than a few lines) placed in
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Sequence
 
+from .acceptance import cell_words, remaining_cells
+from .acceptance_records import Acceptance
 from .localise import where_summary
 from .localization_records import Localization
 from .ranking_records import Ranked
-from .result import RefinedHeldout, Verdict
+from .result import IndistinguishablePair, RefinedHeldout, Verdict
 from .thresholds import MAJOR_BIAS
+
+#: cells named in a ``partially_explained`` verdict
+LISTED_REMAINING = 4
 
 
 @dataclass(frozen=True)
@@ -27,12 +32,31 @@ class VerdictInputs:
         ranking: the final ranking.
         refined_heldout: held-out statistics of the refined model (None: nothing added).
         after: localisation of the final model.
+        before: localisation of the calibrated model (None: not checked).
+        acceptance: the acceptance decisions of the refined contenders.
+        indistinguishable: candidate pairs the data cannot tell apart.
     """
 
     selected: tuple[str, ...]
     ranking: tuple[Ranked, ...]
     refined_heldout: RefinedHeldout | None
     after: Localization
+    before: Localization | None = None
+    acceptance: tuple[Acceptance, ...] = ()
+    indistinguishable: tuple[IndistinguishablePair, ...] = ()
+
+    @property
+    def remaining(self) -> tuple:
+        """The calibrated model's major cells still major after the additions."""
+        if self.before is None or not self.selected:
+            return ()
+        return remaining_cells(self.before, self.after)
+
+
+def error_change(reduction: float) -> str:
+    """A held-out error change in words with one sign: reduction 0.53 → ``−53.0 %``,
+    −0.008 → ``+0.8 %``."""
+    return f"{'−' if reduction >= 0 else '+'}{abs(100.0 * reduction):.1f} %"
 
 
 def effect_sentence(e: Ranked) -> str:
@@ -42,8 +66,9 @@ def effect_sentence(e: Ranked) -> str:
     est = e.params.get(main)
     unit = est.unit if est is not None else ""
     inc = e.inclusion_probability
-    return (f"{e.effect} ({e.kind}; {main} = {p:.4g} {unit}; screening: held-out "
-            f"error −{100 * e.heldout_error_reduction:.1f} %, ΔAICc {e.delta_aicc:.0f}, "
+    label = "refined" if e.refined_params and main in e.refined_params else "screening"
+    return (f"{e.effect} ({e.kind}; {main} = {p:.4g} {unit} ({label}); screening: held-out "
+            f"error {error_change(e.heldout_error_reduction)}, ΔAICc {e.delta_aicc:.0f}, "
             f"inclusion {'–' if inc is None else f'{inc:.2f}'})")
 
 
@@ -57,13 +82,28 @@ def missing_effect(v: VerdictInputs) -> Verdict | None:
     red_st = rh.heldout_error_reduction_stance if rh is not None else 0.0
     text = ("missing effect" + ("s" if len(v.selected) > 1 else "") + ": "
             + "; ".join(effect_sentence(e) for e in v.ranking if e.effect in v.selected)
-            + f"; refined fit: held-out error −{100 * red:.1f} % (stance-averaged), "
-              f"−{100 * red_st:.1f} % (stance by stance)")
+            + f"; refined fit: held-out error {error_change(red)} (stance-averaged), "
+              f"{error_change(red_st)} (stance by stance)")
     left = v.after.n_major_cells
     if left:
         text += (f". After adding {', '.join(v.selected)}, {left} channel × phase "
                  "cells still show structure (see localization.after)")
     return Verdict("missing_effect", text, v.selected)
+
+
+def partially_explained(v: VerdictInputs) -> Verdict | None:
+    """Something was added, but the structure that flagged the missing effect (the
+    calibrated model's major cells) is not all gone: say what was added and what remains
+    where."""
+    left = v.remaining
+    if not v.selected or not left:
+        return None
+    base = missing_effect(v)
+    text = (base.text.split(". After adding")[0]
+            + f". The structure that flagged it is only partly explained: {len(left)} of the "
+              "calibrated model's major cells remain, e.g. "
+            + "; ".join(cell_words(c) for c in left[:LISTED_REMAINING]))
+    return Verdict("partially_explained", text, v.selected)
 
 
 def unexplained_structure(v: VerdictInputs) -> Verdict | None:
@@ -88,17 +128,60 @@ def no_significant_missing_effect(v: VerdictInputs) -> Verdict:
 
 #: the rules, first answer wins; the last one always answers
 VERDICT_RULES: Sequence[Callable[[VerdictInputs], Verdict | None]] = (
-    missing_effect, unexplained_structure, no_significant_missing_effect)
+    partially_explained, missing_effect, unexplained_structure, no_significant_missing_effect)
+
+
+def rejected_sentence(v: VerdictInputs) -> str:
+    """The refined contenders reported but not added, with why ("" if none)."""
+    out = [f"{a.effect} was reported, not added ({'; '.join(a.reasons)})"
+           for a in v.acceptance if not a.accepted]
+    return ". ".join(out)
+
+
+def best_candidate_statement(v: VerdictInputs) -> str:
+    """Whether the best candidate is the answer or only the closest proxy, and why."""
+    if not v.ranking:
+        return ""
+    best = v.ranking[0]
+    name = best.effect
+    twins = sorted({b for p in v.indistinguishable for b in p.effects
+                    if name in p.effects and b != name})
+    if best.added:
+        why = []
+        if v.remaining:
+            why.append(f"{len(v.remaining)} of the major cells that flagged the structure "
+                       "remain")
+        if twins:
+            why.append(f"the data cannot tell it from {', '.join(twins)}")
+        acc = next((a for a in v.acceptance if a.effect == name and a.accepted), None)
+        if acc is not None and acc.notes:
+            why.append("; ".join(acc.notes))
+        if not why:
+            return (f"{name} is the answer: its replays improve the channels it is credited "
+                    "with, its coefficients are physical and the structure it was added for "
+                    "is explained")
+        return f"{name} is only the closest proxy: " + "; ".join(why)
+    if best.not_added_because:
+        return (f"the best candidate, {name}, is only the closest proxy and was not added: "
+                + "; ".join(best.not_added_because))
+    if v.after.n_major_cells:
+        return (f"the best candidate, {name}, is only the closest proxy: it does not pass "
+                "the tests, and the structure is not explained by any candidate")
+    return f"no candidate is needed (the best, {name}, does not pass the tests)"
 
 
 def decide(inputs: VerdictInputs) -> Verdict:
-    """The first verdict of :data:`VERDICT_RULES` that answers."""
+    """The first verdict of :data:`VERDICT_RULES` that answers, with the refined
+    contenders that were reported but not added appended to its text."""
     for rule in VERDICT_RULES:
         v = rule(inputs)
         if v is not None:
-            return v
+            extra = rejected_sentence(inputs)
+            return replace(v, text=f"{v.text}. {extra}") if extra else v
     raise AssertionError("the last verdict rule always answers")
 
 
 __all__ = ["VerdictInputs", "Verdict", "decide", "VERDICT_RULES", "effect_sentence",
-           "missing_effect", "unexplained_structure", "no_significant_missing_effect"]
+           "missing_effect", "partially_explained", "unexplained_structure",
+           "no_significant_missing_effect", "error_change", "rejected_sentence",
+           "best_candidate_statement", "LISTED_REMAINING"]

@@ -26,12 +26,14 @@ Speed: one stance (≈ 0.2 s, 400 plant steps) replays in ≈ 40 ms (granular); 
 spread over a process pool (``workers``).
 
 Modules, one job each: :mod:`.model` (the replayed model and its variants),
-:mod:`.outputs` (what a replay returns), :mod:`.granular`, :mod:`.rigid`, :mod:`.planar`
+:mod:`.outputs` (what a replay returns), :mod:`.measurement` (sensor effects: true
+inputs and initial state from measured ones, checks), :mod:`.granular`, :mod:`.rigid`, :mod:`.planar`
 (one stance window on each model), :mod:`.pool` (many replays over a process pool),
 :mod:`.scoring` (RMSE tables), :mod:`.validation` (``validate`` and its report).
 """
 
 from .granular import replay_granular
+from .measurement import check_sensor_specs, true_window, window_columns
 from .model import (MODELS, REPLAY_PARAMS, TERRAIN_THETA_CONFIG, ReplayModel, Variant,
                     build_replay_model, effect_variant, model_terrain, resolve_effect_specs)
 from .planar import replay_planar
@@ -45,4 +47,4 @@ __all__ = ["validate", "ValidationReport", "Variant", "ReplayModel", "ReplayPool
            "build_replay_model", "effect_variant", "replay_granular", "replay_rigid",
            "replay_planar", "rmse_tables", "model_terrain", "load_fitted",
            "resolve_effect_specs", "role_channels", "MODELS", "REPLAYERS", "REPLAY_PARAMS",
-           "TERRAIN_THETA_CONFIG"]
+           "TERRAIN_THETA_CONFIG", "check_sensor_specs", "true_window", "window_columns"]

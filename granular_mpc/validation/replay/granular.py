@@ -3,10 +3,19 @@
 The augmented plant (:class:`~granular_mpc.dynamics.Plant`) with the terrain model (RFT
 closed form, elastic–plastic contact, bulldozing, added mass) and the variant's joint
 effects, driven by the measured torques; both feet start in contact as measured at the
-window start (local frame of :mod:`..prepare`).
+window start. The replay runs in the data set's horizontal world coordinates: the
+window's local frame (:mod:`..prepare`, a translation by ``w.origin``) is moved back in x
+and y, so a terrain-force effect reads the contact point ``PatchState.p_c`` at the same
+world x, y as in ``synth`` (the dynamics do not depend on the translation). Heights stay
+measured from the free surface under the stance foot's touchdown point, which is the
+world z of ``synth`` (its sand surface is at z = 0) and, for lab data, the only height
+the data define. With sensor effects, the initial state and the torques are the true
+ones (:func:`~.measurement.true_window`).
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pinocchio as pin
@@ -15,7 +24,8 @@ from ...dynamics import Plant
 from ...exceptions import PlantDivergedError
 from ...robot.model import SIDES, Biped
 from ...effects import joint_torque_function
-from ..prepare import StanceWindow, patch_points
+from ..prepare import FootInit, StanceWindow, patch_points
+from .measurement import true_window
 from .model import ReplayModel, Variant
 from .outputs import replay_outputs, set_foot_state
 
@@ -27,6 +37,12 @@ def _patch_velocity(biped: Biped, data: pin.Data, side: str, pts: np.ndarray) ->
     return np.array([vel.linear + np.cross(vel.angular, p - p_F) for p in pts])
 
 
+def _in_world(fi: FootInit, origin: np.ndarray) -> FootInit:
+    """A foot's initial contact state moved by ``origin`` (x, y: to the world's)."""
+    return replace(fi, surface=float(fi.surface + origin[2]), point=fi.point + origin,
+                   c0=fi.c0 + origin)
+
+
 def replay_granular(model: ReplayModel, w: StanceWindow, variant: Variant) -> dict:
     """Replay one window on the 3-D plant with the measured torques.
 
@@ -36,9 +52,14 @@ def replay_granular(model: ReplayModel, w: StanceWindow, variant: Variant) -> di
         variant are applied to the outputs.
     """
     biped = model.biped
+    scored = w
+    w = true_window(biped, w, variant)
+    origin = np.array([w.origin[0], w.origin[1], 0.0])
+    q0 = w.q0.copy()
+    q0[0:3] += origin                        # local frame → the world's x, y
     jfn = joint_torque_function(list(variant.joints))
     plant = Plant(biped, model.terrain, model.sim, joint_effects=() if jfn is None else (jfn,))
-    d = plant.new_data(w.q0, w.v0)
+    d = plant.new_data(q0, w.v0)
     cd = d.contact
     theta = model.theta_vector(variant.theta)
     names = model.terrain.param_names
@@ -49,6 +70,7 @@ def replay_granular(model: ReplayModel, w: StanceWindow, variant: Variant) -> di
     pin.updateFramePlacements(biped.model, d.pin)
     dz = float(variant.theta.get("touchdown_depth", 0.0))
     for i, fi in enumerate(w.feet):
+        fi = _in_world(fi, origin)
         buf = cd.feet[i]
         buf.params[:] = theta
         buf.params[i_h] = fi.surface + dz - sx * fi.point[0] - sy * fi.point[1]
@@ -84,7 +106,7 @@ def replay_granular(model: ReplayModel, w: StanceWindow, variant: Variant) -> di
             record(k)
     except PlantDivergedError:
         diverged = True
-    return replay_outputs(qa, grf, intr, other, diverged, variant, w, J)
+    return replay_outputs(qa, grf, intr, other, diverged, variant, scored, J)
 
 
 __all__ = ["replay_granular"]

@@ -52,11 +52,18 @@ def set_foot_state(buf, fi: FootInit, vel: np.ndarray) -> None:
 
 def apply_variant_sensors(out: dict, variant: Variant | None, w: StanceWindow,
                           J: Sequence[str]) -> dict:
-    """``out`` through the variant's sensor effects (unchanged without any)."""
+    """``out`` through the variant's sensor effects (unchanged without any).
+
+    The effects see every column of the data format: the replayed channels of ``out``
+    and, for the others (``tau_*``, ``dq_*``, ``base_*``, ``time``), the window's measured
+    columns; only the keys of ``out`` are returned."""
     if variant is None or not variant.sensors:
         return out
     ctx = SensorContext(np.full(w.n, w.side, dtype=object), w.time, tuple(J))
-    return apply_sensor_effects(out, list(variant.sensors), ctx)
+    cols = {c: np.asarray(v, dtype=float) for c, v in w.columns.items()}
+    cols.update(out)                         # the replayed channels replace the measured
+    changed = apply_sensor_effects(cols, list(variant.sensors), ctx)
+    return {c: changed[c] for c in out}
 
 
 __all__ = ["replay_outputs", "set_foot_state", "apply_variant_sensors"]

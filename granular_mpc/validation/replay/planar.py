@@ -22,6 +22,7 @@ from ...robot.planar import frontal_view, sagittal_view
 from ...rotations import matrix_from_quat_xyzw, roll_pitch_from_quat_xyzw
 from ..prepare import StanceWindow
 from .model import ReplayModel, Variant
+from .measurement import true_window
 from .outputs import replay_outputs, set_foot_state
 
 
@@ -56,6 +57,8 @@ def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None =
     """
     variant = variant or Variant()
     biped = model.biped
+    scored = w
+    w = true_window(biped, w, variant)         # with sensor effects: the true start, torques
     side, i = w.side, w.foot
     o = 1 - i
     sag, fro, sv, fv = _planar(biped, side)
@@ -143,7 +146,7 @@ def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None =
             intr[k] = buf.diag[:, 2:5].mean(axis=0) if buf.state[:, 6].max() > 0.5 else 0.0
     except (FloatingPointError, np.linalg.LinAlgError):
         diverged = True
-    return replay_outputs(qa, grf, intr, np.zeros(n), diverged, variant, w, J)
+    return replay_outputs(qa, grf, intr, np.zeros(n), diverged, variant, scored, J)
 
 
 __all__ = ["replay_planar"]

@@ -14,6 +14,7 @@ import pinocchio as pin
 from ...robot.model import SIDES
 from ...rotations import skew
 from ..prepare import StanceWindow, patch_points
+from .measurement import true_window
 from .model import ReplayModel, Variant
 from .outputs import replay_outputs
 
@@ -31,6 +32,8 @@ def replay_rigid(model: ReplayModel, w: StanceWindow, variant: Variant | None = 
     semi-implicit Euler on the manifold. The intrusion is 0 by assumption.
     """
     biped = model.biped
+    scored = w
+    w = true_window(biped, w, variant)         # with sensor effects: the true start, torques
     mdl = biped.model
     data = mdl.createData()
     q = w.q0.copy()
@@ -107,7 +110,7 @@ def replay_rigid(model: ReplayModel, w: StanceWindow, variant: Variant | None = 
     except (FloatingPointError, np.linalg.LinAlgError):
         diverged = True
     intr = np.where(np.isnan(qa[:, :1]), np.nan, np.zeros((n, 3)))    # pinned: no intrusion
-    return replay_outputs(qa, lam_out, intr, np.zeros(n), diverged, variant, w, J)
+    return replay_outputs(qa, lam_out, intr, np.zeros(n), diverged, variant, scored, J)
 
 
 __all__ = ["replay_rigid"]

@@ -28,6 +28,7 @@ from ...viz.plots import plot_model_vs_measurement, plot_residual_heatmap, plot_
 from ..dataformat import load_dataset
 from ..diagnosis.result import DIAGNOSIS_FILE, FittedParameters
 from ..prepare import StanceWindow, channel_names, channel_unit, stance_windows, windows_frame
+from .measurement import check_sensor_specs
 from .model import (MODELS, REPLAY_PARAMS, Variant, build_replay_model, effect_variant,
                     model_terrain, resolve_effect_specs)
 from .pool import ReplayPool
@@ -139,6 +140,7 @@ def validate(data_dir: str | Path, out_dir: str | Path | None = None, *,
         raise GranularMpcError(f"{data_dir}: no complete stance phase to replay")
     J = list(ds.joint_names)
     channels = channel_names(J)
+    check_sensor_specs(specs, windows[0], J)      # a clear error before any replay
     base = Variant(theta={k: float(v) for k, v in cal.items() if k in REPLAY_PARAMS},
                    label=model)
     variants = {model: base}

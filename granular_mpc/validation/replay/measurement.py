@@ -1,0 +1,125 @@
+"""The measurement model inside a replay: from measured to true inputs and initial state.
+
+A sensor effect maps the true columns of a trial to the measured ones (``effects.sensor``).
+A replay is *driven* by measured columns — its initial joint angles and rates come from
+``q_*`` (and ``dq_*``), its torques from ``tau_*`` — and *scored* on measured columns. With
+a sensor effect in the variant, the replay therefore
+
+1. inverts the map on its inputs (:func:`true_window`): the window's initial joint angles
+   and rates and its torques are replaced by the true values whose image under the
+   variant's sensor effects is the measurement
+   (:func:`~granular_mpc.effects.sensor.invert_sensor_effects`); each foot's initial contact
+   state (free surface, touchdown points, contact point), which ``prepare`` derived from
+   the forward kinematics of the measured angles, moves with the foot by the difference of
+   the forward kinematics of the true and the measured angles, so the foot starts at the
+   same depth in the same sand;
+2. applies the map to its outputs (:func:`~.outputs.replay_outputs`).
+
+An encoder zero offset at its true value then leaves the replay exactly as the plant ran.
+Not inverted: the base columns (the trunk's measured pose and twist drive the state as
+measured) and the initial force/intrusion of a buried foot (its elastic displacement is
+F/(nK), micrometres per newton).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pinocchio as pin
+
+from typing import Mapping, Sequence
+
+from ...columns import joint_columns
+from ...effects import EffectInfo, SensorContext, check_sensor_effect, invert_sensor_effects
+from ...robot.model import SIDES, Biped
+from ..prepare import FootInit, StanceWindow, patch_points
+from .model import Variant
+
+
+def _sample_period(w: StanceWindow) -> float:
+    return float(w.time[1] - w.time[0]) if w.n > 1 else 0.0
+
+
+def _moved_foot(fi: FootInit, delta: np.ndarray) -> FootInit:
+    """``fi`` with its geometry moved by the per-patch displacement ``delta`` (n, 3) [m]."""
+    mean = delta.mean(axis=0)
+    return replace(fi, surface=float(fi.surface + mean[2]), point=fi.point + mean,
+                   c0=fi.c0 + delta)
+
+
+def true_window(biped: Biped, w: StanceWindow, variant: Variant | None) -> StanceWindow:
+    """``w`` with its initial joint state, torques and feet set to the true values under the
+    sensor effects of ``variant`` (``w`` itself when it has none). See the module docstring.
+    """
+    if variant is None or not variant.sensors:
+        return w
+    J = list(biped.joint_names)
+    specs = list(variant.sensors)
+    dt = _sample_period(w)
+    q_cols, dq_cols, tau_cols = (joint_columns(J, k) for k in ("q", "dq", "tau"))
+    # torques: tau[k] acts over the interval ending at scored sample k (rows k0 … b−2)
+    cols = window_columns(w)
+    cols.update({c: w.tau[:, j] for j, c in enumerate(tau_cols)})
+    ctx = SensorContext(np.full(w.n, w.side, dtype=object), w.time - dt, tuple(J))
+    tau_true = invert_sensor_effects(cols, specs, ctx, tau_cols)
+    tau = np.column_stack([tau_true[c] for c in tau_cols])
+    # the initial joint state (one row, the window's start sample)
+    row = {c: np.asarray(v, dtype=float)[:1] for c, v in w.columns.items()}
+    row.update({c: np.array([w.q0[biped.idx_q[j]]]) for j, c in enumerate(q_cols)})
+    row.update({c: np.array([w.v0[biped.idx_v[j]]]) for j, c in enumerate(dq_cols)})
+    ctx0 = SensorContext(np.array([w.side], dtype=object), w.time[:1] - dt, tuple(J))
+    start = invert_sensor_effects(row, specs, ctx0, q_cols + dq_cols)
+    q0, v0 = w.q0.copy(), w.v0.copy()
+    q0[biped.idx_q] = [start[c][0] for c in q_cols]
+    v0[biped.idx_v] = [start[c][0] for c in dq_cols]
+    if np.array_equal(q0, w.q0) and np.array_equal(v0, w.v0) and np.array_equal(tau, w.tau):
+        return w
+    feet = list(w.feet)
+    if not np.array_equal(q0, w.q0):
+        data = biped.create_data()
+        pts = []
+        for q in (w.q0, q0):
+            pin.framesForwardKinematics(biped.model, data, q)
+            pts.append([patch_points(biped, data.oMf[biped.foot_frame[s]]) for s in SIDES])
+        feet = [_moved_foot(fi, pts[1][i] - pts[0][i]) for i, fi in enumerate(w.feet)]
+    return replace(w, q0=q0, v0=v0, tau=tau, feet=tuple(feet))
+
+
+#: prefixes of the columns a replay reads (initial state, torques): a sensor effect that
+#: changes one of them changes the replay itself, not only its outputs
+REPLAY_INPUT_PREFIXES = ("q_", "dq_", "tau_", "base_")
+
+
+def window_columns(w: StanceWindow) -> dict[str, np.ndarray]:
+    """Every column of the data format on a window's scored rows, as measured."""
+    cols = {c: np.asarray(v, dtype=float) for c, v in w.columns.items()}
+    cols.update({c: np.asarray(v, dtype=float) for c, v in w.meas.items()})
+    return cols
+
+
+def check_sensor_specs(specs: Sequence[tuple[EffectInfo, Mapping[str, float]]],
+                       w: StanceWindow, joint_names: Sequence[str]) -> dict[str, tuple[str, ...]]:
+    """Try each sensor effect of ``specs`` on window ``w``'s columns (before any replay).
+
+    Returns:
+        Effect name → the columns it changes.
+
+    Raises:
+        ConfigError: an effect reads a column the data do not have (naming the effect and
+            the column), or returns one that is not a column of the format.
+    """
+    ctx = SensorContext(np.full(w.n, w.side, dtype=object), w.time, tuple(joint_names))
+    cols = window_columns(w)
+    return {info.name: check_sensor_effect(info, p, cols, ctx)
+            for info, p in specs if info.kind == "sensor"}
+
+
+def changes_replay(changed: Sequence[str]) -> bool:
+    """Whether a sensor effect changing the columns ``changed`` changes what a replay reads
+    (:data:`REPLAY_INPUT_PREFIXES`), so its effect needs a replay, not just its map."""
+    return any(c.startswith(REPLAY_INPUT_PREFIXES) for c in changed)
+
+
+__all__ = ["true_window", "window_columns", "check_sensor_specs", "changes_replay",
+           "REPLAY_INPUT_PREFIXES"]
