@@ -137,7 +137,8 @@ def _check_environment() -> None:
 
     build = os.environ.get("GRANULAR_MPC_PROXSUITE")
     if build is not None and build not in PROXSUITE_BUILDS:
-        raise ConfigError("not a ProxSuite build", key="GRANULAR_MPC_PROXSUITE (environment)",
+        raise ConfigError(f"{build!r} is not a ProxSuite build",
+                          key="GRANULAR_MPC_PROXSUITE (environment)",
                           value=build, allowed=", ".join(PROXSUITE_BUILDS))
 
 
@@ -377,7 +378,7 @@ def _load_effect_files(files: list[Path] | None) -> list[str]:
     names: list[str] = []
     for f in files or []:
         if f.suffix != ".py":
-            raise ConfigError("an effect file must be a Python file (*.py)",
+            raise ConfigError(f"{f}: an effect file must be a Python file (*.py)",
                               key="--effect-file", value=str(f))
         try:
             names += load_effect_file(str(f))

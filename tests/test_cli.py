@@ -246,3 +246,86 @@ def test_ci_script_fails_on_pytest_no_tests(tmp_path):
         proc = subprocess.run(["bash", str(repo / ".ci" / "run")], capture_output=True,
                               text=True, env=env, timeout=60)
         assert proc.returncode == expected, (rc, proc.stdout, proc.stderr)
+
+
+# ----------------------------------------------------------------------------- issue 13
+def _exit_2_no_traceback(res, *needles):
+    assert res.exit_code == 2, (res.exit_code, res.output)
+    text = res.output
+    assert "Traceback" not in text and "pydantic" not in text and "validation error for" not in text
+    for n in needles:
+        assert n in text, (n, text)
+
+
+@pytest.fixture()
+def data_dir(tmp_path):
+    """A folder that does not hold a data set (the bad-input checks come first)."""
+    return tmp_path / "no_data"
+
+
+def test_bad_effect_parameter_is_exit_2_without_a_raw_pydantic_error(tmp_path, data_dir):
+    res = invoke("validate", data_dir, "--out", tmp_path / "v", "--effect", "cohesion:suction=abc")
+    _exit_2_no_traceback(res, "suction", "abc")
+
+
+def test_yaml_that_is_not_utf8_or_has_a_duplicate_key_is_named(tmp_path):
+    latin = tmp_path / "latin.yaml"
+    latin.write_bytes(Path(RIGID).read_bytes() + b"description: caf\xe9\n")
+    _exit_2_no_traceback(invoke("run", latin, "--out", tmp_path / "r"), "latin.yaml", "UTF-8")
+    dup = tmp_path / "dup.yaml"
+    dup.write_text(Path(RIGID).read_text() + "name: again\n")
+    _exit_2_no_traceback(invoke("run", dup, "--out", tmp_path / "r"), "dup.yaml",
+                         "duplicate key 'name'", "line")
+    assert not (tmp_path / "r").exists()
+
+
+def test_effect_files_that_are_not_python_or_raise_are_named(tmp_path, data_dir):
+    txt = tmp_path / "effects.txt"
+    txt.write_text("x = 1\n")
+    _exit_2_no_traceback(invoke("validate", data_dir, "--out", tmp_path / "v", "--effect-file",
+                                txt), "effects.txt", "*.py")
+    bad = tmp_path / "bad_effect.py"
+    bad.write_text("raise RuntimeError('boom at import')\n")
+    _exit_2_no_traceback(invoke("validate", data_dir, "--out", tmp_path / "v", "--effect-file",
+                                bad), "bad_effect.py", "RuntimeError", "boom at import")
+
+
+def test_bad_proxsuite_build_in_the_environment_is_exit_2(tmp_path, monkeypatch):
+    monkeypatch.setenv("GRANULAR_MPC_PROXSUITE", "turbo")
+    _exit_2_no_traceback(invoke("run", RIGID, "--out", tmp_path / "r"),
+                         "GRANULAR_MPC_PROXSUITE", "turbo", "native, generic")
+
+
+def test_synth_rejects_zero_steps_fast_speeds_and_unknown_noise_prefixes(tmp_path):
+    out = tmp_path / "d"
+    _exit_2_no_traceback(invoke("synth", SAND, "--out", out, "--steps", "0"), "steps", "at least 1")
+    _exit_2_no_traceback(invoke("synth", SAND, "--out", out, "--speeds", "5"), "speed", "1.5")
+    _exit_2_no_traceback(invoke("synth", SAND, "--out", out, "--noise", "gfr_=0.5"),
+                         "gfr_", "grf_", "q_")
+    assert not out.exists()
+
+
+def test_validate_rejects_a_negative_worker_count(tmp_path, data_dir):
+    res = invoke("validate", data_dir, "--out", tmp_path / "v", "--workers", "-3")
+    assert res.exit_code == 2 and "greater than or equal to 1" in res.output
+
+
+def test_missing_data_folder_is_exit_2(tmp_path, data_dir):
+    _exit_2_no_traceback(invoke("validate", data_dir, "--out", tmp_path / "v"), "no_data")
+
+
+def test_synth_never_replaces_measured_data_or_a_foreign_folder(tmp_path):
+    measured = tmp_path / "measured"
+    measured.mkdir()
+    (measured / "meta.yaml").write_text("schema_version: 1\ntrials:\n  t1: {file: t1.csv}\n")
+    (measured / "t1.csv").write_text("time\n0\n")
+    for extra in ([], ["--overwrite"]):
+        _exit_2_no_traceback(invoke("synth", SAND, "--out", measured, "--steps", "1", *extra),
+                             "measured data", "never overwritten")
+    assert (measured / "t1.csv").read_text() == "time\n0\n"
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("mine")
+    _exit_2_no_traceback(invoke("synth", SAND, "--out", foreign, "--steps", "1"),
+                         "not empty", "notes.txt")
+    assert [p.name for p in foreign.iterdir()] == ["notes.txt"]

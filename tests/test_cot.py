@@ -1,4 +1,11 @@
-"""Cost of transport: closed-form integrals, distance, cumulative CoT, weight estimate."""
+"""Cost of transport: closed-form integrals, distance, cumulative CoT, weight estimate.
+
+Tolerances: rel 1e-12 where the code and the reference take the same trapezoid sums
+(round-off only); rel 1e-8 against closed-form integrals of smooth periodic power over
+whole periods on 200 001 samples (the trapezoid rule is exact to round-off there); rel 1e-6
+for ∫|P| and ∫max(P, 0), whose kinks at the 20 zero crossings cost O(h²) each
+(h = 1e-5 s: ≈ 1e-9 relative in all).
+"""
 from __future__ import annotations
 
 import numpy as np

@@ -16,9 +16,9 @@ import pytest
 from granular_mpc.effects import Param, effect_info, register_effect, registered_effects
 from granular_mpc.validation.diagnosis import (LARGE_HELDOUT_REDUCTION, MAX_DELTA_AICC,
                                                MIN_EFFECT_SIZE, Column, Design, Diagnosis,
-                                               Regression, aicc, candidate_columns,
-                                               candidate_stats, guard_jumps, load_diagnosis,
-                                               localize)
+                                               Regression, aicc, build_candidates,
+                                               candidate_columns, candidate_stats, guard_jumps,
+                                               load_diagnosis, localize)
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -138,6 +138,141 @@ def test_localize_finds_the_biased_cell():
     assert set(loc.whiteness_stance_sequence) == {"a", "b"}
 
 
+# ----------------------------------------------------------------- honest acceptance, report
+def _ranked(effect="inertial_drag", red=0.3, value=1.27, refined=None, lo=1.23, hi=1.31,
+            **kw):
+    from granular_mpc.validation.diagnosis import ParamEstimate, Ranked
+
+    est = ParamEstimate(value, 0.02, value - 0.04, value + 0.04, "-", 0.0, 0.0, 20.0, False,
+                        lo, hi)
+    base = dict(effect=effect, kind="terrain_force", heldout_error_reduction=red,
+                heldout_error_reduction_stance=red, delta_aicc=-30.0, folds_improved="4/5",
+                effect_size=1.5, params={"c_d": est}, main="c_d", depends_on=(), doc="",
+                inclusion_probability=0.9, significant=True, rank=1,
+                added=refined is not None,
+                refined_params=None if refined is None else {"c_d": refined})
+    base.update(kw)
+    return Ranked(**base)
+
+
+def test_report_labels_the_refined_value_and_the_screening_interval():
+    """report.md printed the refined value beside the screening interval
+    (``c_d = 1.334 [1.23, 1.31]``); each number now has its own label."""
+    from granular_mpc.validation.diagnosis import coefficient_text
+
+    txt = coefficient_text(_ranked(refined=1.334))
+    assert "refined value 1.334" in txt and "screening estimate 1.27 [1.23, 1.31]" in txt
+    assert "1.334 [" not in txt
+    assert coefficient_text(_ranked()).startswith("c_d: screening estimate 1.27 [1.23, 1.31]")
+
+
+def test_verdict_text_has_one_sign():
+    """A negative reduction printed "held-out error −-0.8 %"."""
+    from granular_mpc.validation.diagnosis import error_change
+    from granular_mpc.validation.diagnosis.verdict import effect_sentence
+
+    assert error_change(0.53) == "−53.0 %" and error_change(-0.008) == "+0.8 %"
+    text = effect_sentence(_ranked(red=-0.008, refined=0.67))
+    assert "−-" not in text and "held-out error +0.8 %" in text
+
+
+def test_a_near_tie_in_bootstrap_inclusion_is_indistinguishable():
+    """Two candidates that pass every other test and split the bootstrap selections
+    (0.49 vs 0.57 against 0.6) are one decision the data cannot make: both say so, and
+    the one with the larger held-out reduction stays a contender."""
+    from granular_mpc.validation.diagnosis import inclusion_ties, share_inclusion
+
+    def row(n, red, inc):
+        return dict(effect=n, heldout_error_reduction=red, delta_aicc=-40.0, effect_size=2.0,
+                    heldout_error_reduction_stance=0.1, inclusion_probability=inc,
+                    significant=False)
+
+    rows = [row("inertial_drag", 0.5, 0.57), row("cohesion", 0.45, 0.49), row("x", 0.01, 0.0)]
+    share_inclusion(rows)
+    assert rows[0]["significant"] and not rows[1]["significant"]
+    assert rows[0]["inclusion_shared_with"] == ("cohesion",)
+    assert rows[1]["inclusion_shared_with"] == ("inertial_drag",)
+    assert "inclusion_shared_with" not in rows[2]
+    ranked = [_ranked(r["effect"], inclusion_shared_with=r.get("inclusion_shared_with", ()))
+              for r in rows]
+    assert inclusion_ties(ranked) == [("inertial_drag", "cohesion")]
+    clear = [row("a", 0.5, 0.95), row("b", 0.4, 0.3)]      # a clear decision: no tie
+    share_inclusion(clear)
+    assert "inclusion_shared_with" not in clear[0]
+
+
+def test_coefficient_checks_flag_bounds_and_unphysical_signs():
+    from granular_mpc.validation.diagnosis import coefficient_checks
+
+    (n,) = coefficient_checks(effect_info("depth_hardening"), {"n": 0.67, "d_ref": 0.02})
+    assert n.status == "wrong_sign"                    # a softening "hardening" exponent
+    assert coefficient_checks(effect_info("depth_hardening"), {"n": 1.5})[0].status == "ok"
+    top = coefficient_checks(effect_info("cohesion"), {"suction": 50000.0, "release": 0.003})
+    assert top[0].param == "suction" and top[0].status == "at_bound"
+
+
+def _acceptance_windows(n_w=6, n=40):
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(1)
+    ws, before, good, bad = [], [], [], []
+    for _ in range(n_w):
+        meas = {"grf_z": 100 + rng.normal(0, 1, n), "q_a": rng.normal(0, 0.01, n)}
+        ws.append(SimpleNamespace(meas=meas))
+        before.append({"grf_z": meas["grf_z"] - 10.0, "q_a": meas["q_a"].copy()})
+        good.append({"grf_z": meas["grf_z"] - 2.0, "q_a": meas["q_a"].copy()})
+        bad.append({"grf_z": meas["grf_z"] - 12.0, "q_a": meas["q_a"].copy()})
+    return ws, before, good, bad
+
+
+def test_a_term_whose_replays_worsen_its_channel_is_reported_not_added():
+    from granular_mpc.validation.diagnosis import judge
+
+    ws, before, good, bad = _acceptance_windows()
+    info = effect_info("inertial_drag")
+    sigma = {"grf_z": 1.0, "q_a": 0.01}
+    ok = judge(ws, ["grf_z", "q_a"], sigma, info, {"c_d": 2.0}, before, good)
+    assert ok.accepted and list(ok.credited_channels) == ["grf_z"]
+    assert ok.credited_channels["grf_z"].reduction > 0.5
+    worse = judge(ws, ["grf_z", "q_a"], sigma, info, {"c_d": 2.0}, before, bad)
+    assert not worse.accepted and "grf_z" in worse.reasons[0]
+    unphys = judge(ws, ["grf_z", "q_a"], sigma, effect_info("depth_hardening"),
+                   {"n": 0.67, "d_ref": 0.02}, before, good)
+    assert not unphys.accepted and "wrong side" in unphys.reasons[0]
+
+
+def test_structure_left_after_an_addition_is_partially_explained():
+    from granular_mpc.validation.diagnosis import VerdictInputs, decide, remaining_cells
+    from granular_mpc.validation.diagnosis.localization_records import Cell, Localization
+
+    def loc(t_big):
+        cells = (Cell("grf_z", "all", 30.0, 40.0, 5.0, 1.0, 5.0, t_big, 20, "N", 2.0,
+                      True if abs(t_big) >= 4 else None),
+                 Cell("q_a", "all", 0.0, 10.0, 0.1, 1.0, 0.1, 0.5, 20, "rad", 0.1, None))
+        major = sum(1 for c in cells if c.major)
+        return Localization(cells, tuple(c for c in cells if c.major), major, major, {}, (),
+                            {}, {})
+
+    before, stays, gone = loc(9.0), loc(8.0), loc(1.0)
+    assert [c.channel for c in remaining_cells(before, stays)] == ["grf_z"]
+    assert remaining_cells(before, gone) == ()
+    r = _ranked(refined=1.3)
+    v = decide(VerdictInputs(("inertial_drag",), (r,), None, stays, before))
+    assert v.status == "partially_explained" and "grf_z at 30–40 %" in v.text
+    assert decide(VerdictInputs(("inertial_drag",), (r,), None, gone, before)).status == \
+        "missing_effect"
+
+
+def test_an_all_zero_candidate_column_is_named():
+    from granular_mpc.validation.diagnosis import dead_candidates
+
+    cs = build_candidates(["force_sensor_bias", "inertial_drag"])
+    sens = {c.key: np.zeros((4, 2, 3)) for cols in cs.columns.values() for c in cols}
+    sens["inertial_drag.c_d"][0, 0, 0] = 1.0
+    dead = dead_candidates(cs, sens, ["grf_z", "q_a"])
+    assert list(dead) == ["force_sensor_bias"] and "all zero" in dead["force_sensor_bias"]
+
+
 # ----------------------------------------------------------------------------- pipeline
 def test_null_data_adds_nothing(workbench_diagnosis):
     d = workbench_diagnosis("null")
@@ -202,6 +337,51 @@ def test_a_user_written_term_closes_the_gap(workbench_data, library_candidates, 
     ba = v.report["before_after"]
     assert ba["intrusion_y"]["after"] < 0.8 * ba["intrusion_y"]["before"]
     assert ba["grf_y"]["after"] < ba["grf_y"]["before"]
+
+
+def test_user_terms_of_every_kind_are_candidates(workbench_data, library_candidates, tmp_path):
+    """A user sensor effect on the torques (crashed: KeyError 'tau_left_hip_abd'), a user
+    joint effect and a sensor effect that changes no scored channel (an all-zero column,
+    ranked without a word before) next to the library, on data with hidden cohesion."""
+    from granular_mpc.effects import register_joint_effect, register_sensor_effect
+    from granular_mpc.effects import registered_names
+    from granular_mpc.validation.diagnose import diagnose
+
+    if "_test_dg_tau_gain" not in registered_names():
+        @register_sensor_effect("_test_dg_tau_gain",
+                                params={"gain": Param(1.1, 0.5, 2.0, "-", "torque gain")},
+                                neutral={"gain": 1.0})
+        def _tau_gain(cols, p, ctx):
+            """τ_meas = g τ."""
+            return {f"tau_{j}": p["gain"] * np.asarray(cols[f"tau_{j}"]) for j in ctx.joint_names}
+
+        @register_joint_effect("_test_dg_damping",
+                               params={"b": Param(0.05, 0.0, 2.0, "N·m·s/rad", "damping")})
+        def _damping(q_a, dq_a, p):
+            """Viscous joint damping."""
+            return -p["b"] * dq_a
+
+        @register_sensor_effect("_test_dg_mocap_offset",
+                                params={"dx": Param(0.01, -1.0, 1.0, "m", "mocap offset")})
+        def _mocap(cols, p, ctx):
+            """A motion-capture x offset: no scored channel sees it."""
+            return {"base_x": np.asarray(cols["base_x"]) + p["dx"]}
+
+    user = ["_test_dg_tau_gain", "_test_dg_damping", "_test_dg_mocap_offset"]
+    with pytest.warns(UserWarning, match="_test_dg_mocap_offset"):
+        d = diagnose(workbench_data("cohesion"), tmp_path / "d", n_boot=60,
+                     candidates=library_candidates + user, figures=False)
+    ranked = [r.effect for r in d.ranking]
+    assert "_test_dg_tau_gain" in ranked and "_test_dg_damping" in ranked
+    assert "_test_dg_mocap_offset" not in ranked
+    assert any("_test_dg_mocap_offset" in w and "all zero" in w for w in d.warnings)
+    assert d.added[:1] == ["cohesion"]
+    acc = {a.effect: a for a in d.acceptance}
+    assert acc["cohesion"].accepted
+    assert all(ch.after < ch.before for ch in acc["cohesion"].credited_channels.values())
+    assert d.best_candidate.startswith("cohesion is")
+    md = (d.out_dir / "report.md").read_text()
+    assert "Best candidate" in md and "_test_dg_mocap_offset" in md
 
 
 def test_outputs_on_disk(workbench_diagnosis):

@@ -24,9 +24,13 @@ def test_pure_rolling_disc_has_reff_equal_radius():
     s = 0.05 * t + 0.8 * t ** 2                 # accelerating roll, arc length [m]
     psi, xs, zs = _rolling_disc(t, s)
     df = rolling_from_arrays(t, psi, xs, zs)
-    ok = np.isfinite(df.r_eff)
-    assert ok.mean() > 0.95
-    assert np.allclose(df.r_eff[ok], R_DISC, rtol=1e-6)
+    # ṡ ≥ 0.05 m/s, so |θ̇_r| = ṡ/R ≥ 1.2 rad/s, above min_rate (0.05 rad/s) everywhere:
+    # R_eff is defined at every sample
+    assert np.isfinite(df.r_eff).all()
+    # R_eff = ẋ_s/|θ̇_r| with both rates differentiated by the same scheme from x_s = s and
+    # ψ_c = ψ0 − s/R: the ratio is R up to round-off of the differences on the random grid
+    # (measured 6.5e-11 relative)
+    assert np.allclose(df.r_eff, R_DISC, rtol=1e-8)
     # Δθ_r starts at 0 and is negative (paper Fig. 6a: decreasing) for forward rolling
     assert df.dtheta_r.iloc[0] == 0.0
     assert np.allclose(df.dtheta_r, -s / R_DISC)
@@ -113,8 +117,10 @@ def test_plateau_by_stance_on_synthetic_log():
     roll = rolling_from_log(make_log(4).df)
     tab = plateau_by_stance(roll)
     assert len(tab) == 4
-    assert np.allclose(tab.onset_pct, 40.0, atol=1.0)
-    assert np.allclose(tab.fraction, 0.30, atol=0.015)
+    # the synthetic stance (101 rows) has the ramp–plateau–ramp of
+    # test_plateau_ramp_plateau_ramp: plateau 40–70 % found as 40.5–69.5 % exactly
+    assert np.allclose(tab.onset_pct, 40.5, atol=1e-9)
+    assert np.allclose(tab.fraction, 0.29, atol=1e-9)
     assert (tab.n_plateaus == 1).all()
 
 

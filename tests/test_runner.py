@@ -234,7 +234,10 @@ def test_reusing_a_run_folder_replaces_the_previous_run(tmp_path):
                                         "output.plots=false"])
     run_scenario(long, out, progress=False)
     (out / "mine.txt").write_text("keep me")
-    res = run_scenario(short, out, progress=False)
+    with pytest.raises(OutputError, match="already holds a previous run.*--overwrite"):
+        run_scenario(short, out, progress=False)          # not without overwrite
+    assert len(read_log(out)) == 101                      # the first run is untouched
+    res = run_scenario(short, out, progress=False, overwrite=True)
     log = read_log(out)
     assert len(log) == res.summary["log_rows"] == 26 and log["time"].iloc[-1] == pytest.approx(0.05)
     assert (out / "mine.txt").read_text() == "keep me"

@@ -121,7 +121,7 @@ def test_parameters_by_segment(track):
 def test_walk_across_the_edge_in_closed_loop():
     """Rigid platform up to x = 5 cm, then sand; the paper's controller with the 39 ms
     double support steps across and keeps walking (2.5 s)."""
-    sc = load_scenario("sim/paper_protocol.yaml", [
+    sc = load_scenario("paper_protocol", [
         ("terrain", {"kind": "track", "segments": [{"until_x": 0.05, "terrain": "rigid"},
                                                     {"terrain": "dry_sand"}]}),
         "controller.gait.load_transfer=0.039", "command.start_delay=0.3",

@@ -7,6 +7,11 @@ with time so that no pose repeats, one foot in contact at a time carrying 110 N.
 
 Browser tests need Debian's ``chromium`` (``.ci/install-browser.sh``); without it they are
 skipped with the reason shown in pytest's summary, never passed.
+
+Tests that depend on wall-clock time or on pixel counts of a rendered page carry the
+``timing`` marker (registered in pyproject.toml; CI runs them). Their margins are stated
+next to each bound and hold on a shared 2-core machine at load 2, where the scheduler
+can hold a runnable thread back for a period of ~24 ms (Linux CFS ``sched_latency``).
 """
 
 from __future__ import annotations
@@ -38,6 +43,12 @@ DURATION = 3.0       # s
 DT = 0.005           # s
 FZ = 110.0           # N
 PERIOD = 1.3         # s
+
+timing = pytest.mark.timing
+#: Chromium's wall-clock limit per screenshot [s]: a headless start + SwiftShader (CPU)
+#: rendering of 0.5–2.5 s of virtual time takes ~3–10 s idle; 120 s leaves ×10 at load 2.
+#: Virtual time (``--virtual-time-budget``) makes what is drawn independent of the load.
+CHROMIUM_TIMEOUT_S = 120
 
 
 # --------------------------------------------------------------------------------------
@@ -373,7 +384,7 @@ def _screenshot(url: str, out: Path, budget_ms: int) -> np.ndarray:
              "--enable-unsafe-swiftshader", f"--user-data-dir={profile}",
              "--window-size=800,600", "--hide-scrollbars",
              f"--virtual-time-budget={budget_ms}", f"--screenshot={out}", url],
-            capture_output=True, text=True, timeout=45)
+            capture_output=True, text=True, timeout=CHROMIUM_TIMEOUT_S)
     finally:
         shutil.rmtree(profile, ignore_errors=True)
     assert out.is_file(), (f"Chromium wrote no screenshot (exit {proc.returncode}): "
@@ -399,19 +410,34 @@ def _sand(img: np.ndarray) -> np.ndarray:
     return (r > 90) & (g > 0.78 * r) & (g < 0.95 * r) & (b > 0.45 * r) & (b < 0.75 * r)
 
 
+#: Pixel bounds of the screenshots (800 × 600 = 480 000 px). Each separates "drawn" /
+#: "playing" from its failure, which gives ~0 px (no orange or sand colour elsewhere on
+#: the page; a frozen page does not change). Measured twice at load 7–11 (how far the
+#: animation has played by a screenshot varies a little with the load, so the counts do):
+#: orange 2 319–2 623 px, sand 245 119–247 425, changed 10 219–12 721, moved 3 771–5 717;
+#: live view orange 2 297, grey slab 254 830. Bounds 5–12× below the smallest of these.
+MIN_ORANGE_PX = 400
+MIN_SAND_PX = 20_000
+MIN_CHANGED_PX = 2000
+MIN_MOVED_PX = 600
+MIN_GREY_PX = 20_000
+
+
+@timing
 def test_exported_page_draws_robot_and_plays_in_chromium(exported, tmp_path):
     url = exported.resolve().as_uri()
     early = _screenshot(url, tmp_path / "html_early.png", 500)
     late = _screenshot(url, tmp_path / "html_late.png", 1600)
     for img in (early, late):
+        # colour spread of a drawn scene: measured 55 (0 for a blank page)
         assert img.reshape(-1, 3).std(axis=0).max() > 20, "screenshot is uniform: nothing drawn"
-        assert _orange(img).sum() > 400, "robot legs (orange) not visible"
-        assert _sand(img).sum() > 20_000, "sand not visible"
+        assert _orange(img).sum() > MIN_ORANGE_PX, "robot legs (orange) not visible"
+        assert _sand(img).sum() > MIN_SAND_PX, "sand not visible"
     scene = slice(30, 560)  # leave out the controls bar (top) and the time overlay (bottom)
     changed = (np.abs(early[scene] - late[scene]).sum(axis=2) > 30).sum()
-    assert changed > 2000, f"the two screenshots barely differ ({changed} px): not playing"
+    assert changed > MIN_CHANGED_PX, f"the two screenshots barely differ ({changed} px): not playing"
     moved = (_robot(early[scene]) ^ _robot(late[scene])).sum()
-    assert moved > 600, f"the robot did not move between the two screenshots ({moved} px)"
+    assert moved > MIN_MOVED_PX, f"the robot did not move between the two screenshots ({moved} px)"
 
 
 def _server_commands(page: str) -> list[dict]:
@@ -440,6 +466,14 @@ def _listening(port: int) -> list[str]:
     return out
 
 
+#: worst wall time of one ``LiveViewer.update`` call [s]. update() only takes a lock and
+#: stores the row; a blocking one would wait for the server's answer, up to ``timeout_s``
+#: (2 s by default, 0.5 s in the stuck-server test). 0.25 s is half the smaller timeout
+#: and ten CFS scheduling periods (~24 ms) of delay at load 2.
+UPDATE_WORST_S = 0.25
+
+
+@timing
 @pytest.mark.skipif(not Path("/proc/net/tcp").exists(), reason="needs Linux /proc/net/tcp")
 def test_live_viewer_localhost_streams_and_cleans_up(biped, log, tmp_path, capsys):
     rows = log.to_dict("records")
@@ -460,8 +494,11 @@ def test_live_viewer_localhost_streams_and_cleans_up(biped, log, tmp_path, capsy
             viewer.update(row)
             worst = max(worst, time.perf_counter() - t)
         elapsed = time.monotonic() - t0
-        assert worst < 0.05, f"update() took {worst * 1e3:.1f} ms"
+        assert worst < UPDATE_WORST_S, f"update() took {worst * 1e3:.1f} ms"
         assert viewer.rows_seen == len(rows)
+        # the rate limit (30 Hz on the monotonic clock): at most one row per 1/30 s of the
+        # loop's own elapsed time, + the first row and one at the boundary. A slower
+        # (loaded) loop only loosens this bound: it holds at any load.
         assert viewer.rows_accepted <= 30 * elapsed + 2
         viewer.update(rows[-1], force=True)
         assert viewer.flush(timeout=10.0)
@@ -487,6 +524,7 @@ def test_live_viewer_localhost_streams_and_cleans_up(biped, log, tmp_path, capsy
     assert viewer.update(rows[0]) is False
 
 
+@timing
 def test_live_viewer_renders_in_chromium(biped, log, tmp_path):
     _chromium()  # skip (with the reason) before starting a server if there is no browser
     rows = log.to_dict("records")
@@ -497,9 +535,9 @@ def test_live_viewer_renders_in_chromium(biped, log, tmp_path):
         assert viewer.flush(timeout=10.0)
         page = _screenshot(viewer.url, tmp_path / "live.png", 2500)
     assert page.reshape(-1, 3).std(axis=0).max() > 20, "live view: screenshot is uniform"
-    assert _orange(page).sum() > 400, "live view: robot not drawn"
+    assert _orange(page).sum() > MIN_ORANGE_PX, "live view: robot not drawn"
     grey = (np.abs(page[..., 0] - page[..., 1]) < 8) & (page[..., 0] > 110) & (page[..., 0] < 170)
-    assert grey.sum() > 20_000, "live view: rigid ground (grey slab) not drawn"
+    assert grey.sum() > MIN_GREY_PX, "live view: rigid ground (grey slab) not drawn"
 
 
 def test_replay_live_serves_the_run_as_animation(biped, log, tmp_path):
@@ -526,6 +564,7 @@ def test_replay_live_serves_the_run_as_animation(biped, log, tmp_path):
     assert not server.alive()
 
 
+@timing
 def test_live_update_never_waits_for_a_stuck_server(biped, log):
     rows = log.to_dict("records")
     viewer = LiveViewer(biped, None, rate_hz=100, timeout_s=0.5, announce=False)
@@ -543,8 +582,11 @@ def test_live_update_never_waits_for_a_stuck_server(biped, log):
                 worst = max(worst, time.perf_counter() - t)
                 i += 1
                 time.sleep(0.001)
-        assert i > 200
-        assert worst < 0.1, f"update() blocked for {worst * 1e3:.0f} ms"
+        # a blocking update() would wait timeout_s = 0.5 s per call: ≤ 3 calls in 1.5 s.
+        # Bound 30 calls: up to 50 ms per iteration (1 ms sleep + two CFS periods at load
+        # 2); idle, ~1000 are made.
+        assert i >= 30, i
+        assert worst < UPDATE_WORST_S, f"update() blocked for {worst * 1e3:.0f} ms"
         assert viewer.error is not None and "did not answer" in viewer.error
         assert not viewer.alive
         stopped = [w for w in caught if "Meshcat live view stopped" in str(w.message)]

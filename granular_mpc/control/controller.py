@@ -60,6 +60,30 @@ def effective_gait(config: ControllerConfig, ground: GroundModel, weight: float)
     return gait.model_copy(update={"swing_fraction": swing, "load_transfer": float(lt)})
 
 
+def next_tick(current: float, t: float, period: float, first: bool) -> float:
+    """Time of the MPC tick after the one run at ``t`` [s].
+
+    Ticks stay on the grid ``t_first + n·period`` (the first tick sets its phase), so the
+    MPC rate is the configured one even when the controller is only called on a coarser
+    grid (each tick then runs at the first call at or after its grid time, at most one
+    call late, never accumulating the lateness); ticks missed entirely are skipped."""
+    nxt = t + period if first else current + period
+    while nxt <= t + 1e-9:
+        nxt += period
+    return nxt
+
+
+def nominal_forces(stance: tuple[bool, bool], weight: float, n_points: int) -> np.ndarray:
+    """The weight ``weight`` [N] shared equally by the stance feet, vertical, spread
+    equally over each foot's ``n_points`` contact points: shape (2, n_points, 3) [N, W]."""
+    forces = np.zeros((2, n_points, 3))
+    n_st = sum(bool(c) for c in stance)
+    for i in range(2):
+        if stance[i]:
+            forces[i, :, 2] = weight / n_st / n_points
+    return forces
+
+
 @dataclass(frozen=True)
 class TickRecord:
     """One controller tick (status as data, never printed)."""
@@ -209,7 +233,6 @@ class WalkingController:
     # ------------------------------------------------------------------ the tick
     def compute(self, d: ControllerData, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Actuator torques [N·m] at time ``t`` for plant state (q, v)."""
-        t_start = time.perf_counter()
         b = self.biped
         pd = d.wbc.pin
         pin.forwardKinematics(b.model, pd, q, v)
@@ -270,16 +293,15 @@ class WalkingController:
             return self._weight_shift(d, t, q, v, com, feet)
         # ---------------- MPC
         if d.plan is None or t >= d.next_mpc - 1e-9:
+            first = d.plan is None
             self._run_mpc(d, t, com, vcom, rpy, omega_W, feet, stance, v_cmd, y_line, yaw_ref)
-            d.next_mpc = t + 1.0 / self.config.mpc.rate_hz
+            d.next_mpc = next_tick(d.next_mpc, t, 1.0 / self.config.mpc.rate_hz, first)
         plan = d.plan
         dt = self.config.mpc.dt
         k = int(np.clip((t - plan.t) // dt, 0, self.mpc.N - 1))
-        forces = plan.forces[k].copy()
+        forces = self._force_reference(plan, t, stance)
         # CoM reference: the MPC prediction at t (linear in time inside the step)
         s = min(max((t - plan.t) / dt, 0.0), float(self.mpc.N))
-        prev = np.concatenate([[0, 0, 0], plan.states[0][3:6] * 0, [0, 0, 0], [0, 0, 0]])
-        _ = prev
         k0 = min(int(s), self.mpc.N - 1)
         xs = plan.states[k0]
         com_ref = xs[3:6] + (s - k0 - 1.0) * dt * xs[9:12]
@@ -310,8 +332,31 @@ class WalkingController:
         d.records.append(TickRecord(t, "wbc", d.wbc.last_status.value, d.wbc.last_ms,
                                     (time.perf_counter() - t_wbc) * 1e3))
         d.last_tau = tau
-        _ = t_start
         return tau
+
+    def _force_reference(self, plan: MPCPlan, t: float, stance: tuple[bool, bool]) -> np.ndarray:
+        """Contact forces (2, n_points, 3) [N, W] the WBC tracks at ``t``.
+
+        The MPC samples each step's contact set at the step's mid-point, so a step that
+        contains a contact event plans the set of its longer part: for the rest of that
+        step the plan disagrees with the schedule at ``t`` (the foot still swinging is
+        held at zero force by the WBC, the one still standing planned at zero), and
+        tracking it unloads the robot up to half a step before a touchdown. The reference
+        is therefore the planned forces of the step nearest to ``t`` whose contact set is
+        the schedule's at ``t`` (the step the plan says ``t`` belongs to, else its
+        neighbour on ``t``'s side of the event, else the other one); if no step within one
+        of ``t`` matches (an event right at the start of a fresh plan), the weight shared
+        equally over the scheduled stance feet, vertical, spread over their points."""
+        dt = self.config.mpc.dt
+        n = plan.forces.shape[0]
+        s = (t - plan.t) / dt
+        k = int(np.clip(math.floor(s), 0, n - 1))
+        want = np.asarray(stance, dtype=bool)
+        near = k - 1 if s - k < 0.5 else k + 1
+        for j in (k, near, 2 * k - near):
+            if 0 <= j < n and np.array_equal(plan.contacts[j], want):
+                return plan.forces[j].copy()
+        return nominal_forces(stance, self.biped.weight, plan.forces.shape[2])
 
     def _weight_shift(self, d: ControllerData, t: float, q: np.ndarray, v: np.ndarray,
                       com: np.ndarray, feet) -> np.ndarray:
@@ -439,4 +484,4 @@ class WalkingController:
                                     (time.perf_counter() - t0) * 1e3, plan.fallback))
 
 
-__all__ = ["WalkingController", "ControllerData", "TickRecord"]
+__all__ = ["WalkingController", "ControllerData", "TickRecord", "next_tick", "nominal_forces"]

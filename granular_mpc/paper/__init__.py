@@ -9,7 +9,7 @@ call). Protocols and how to read the table: ``docs/paper.md``.
 """
 
 from .claims import ClaimRow
-from .comparison import PaperComparison, paper_comparison
+from .comparison import PaperComparison, paper_comparison, tabulate
 from .runs import PaperRuns, RunPlan
 
-__all__ = ["paper_comparison", "PaperComparison", "ClaimRow", "PaperRuns", "RunPlan"]
+__all__ = ["paper_comparison", "tabulate", "PaperComparison", "ClaimRow", "PaperRuns", "RunPlan"]

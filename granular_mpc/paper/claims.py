@@ -187,8 +187,7 @@ class ClaimBuilder:
                      "≈ 20 %", f"{_fmt(onset, 0)} % ({cs.n_stances}/{cr.n_stances} stances)",
                      _ratio(onset, 20.0), self.p_sweep,
                      "agrees" if _agrees(onset, 20.0) else
-                     "not explained by a measurement yet (the stances here carry the 39 ms "
-                     "double support the paper's gait had not)", src, onset),
+                     "not explained by a measurement yet", src, onset),
             ClaimRow("pullout_jump", "jump of the sand CoT at pull-out (late stance, Fig. 6c)",
                      "significant jump", f"last 10 % of stance: {_fmt(100 * ls, 0)} % of the "
                      f"sand stance's cost vs {_fmt(100 * lr, 0)} % on rigid ground (uniform: 10 %)",
@@ -273,9 +272,13 @@ class ClaimBuilder:
         fell = bool(ex.get("fell"))
         t_fall = ex.get("fall_time_s")
         after = (t_fall - self.first_sand_td) if fell and math.isfinite(self.first_sand_td) else math.nan
-        ours = (f"falls {_fmt(after)} s after its first step onto the sand (fall at "
-                f"{_fmt(t_fall)} s, {ex.get('fall_reason')})" if fell else
-                f"walks {_fmt(ex.get('sim_time_s'), 1)} s")
+        if fell and math.isfinite(after):
+            ours = (f"falls {_fmt(after)} s after its first step onto the sand (fall at "
+                    f"{_fmt(t_fall)} s, {ex.get('fall_reason')})")
+        elif fell:
+            ours = f"falls at {_fmt(t_fall)} s, before any step onto the sand"
+        else:
+            ours = f"walks {_fmt(ex.get('sim_time_s'), 1)} s"
         ours += ("; with the 39 ms double support: " +
                  (f"falls at {_fmt(tr.get('fall_time_s'))} s" if tr.get("fell") else
                   f"walks the whole {_fmt(tr.get('sim_time_s'), 1)} s across the edge"))

@@ -74,15 +74,29 @@ def paper_comparison(out_dir: str | Path, *, quick: bool = False,
     """
     t0 = time.perf_counter()
     out = make_output_folder(out_dir)
-    plan = RunPlan.make(quick)
-    runs = run_all(out, plan, workers=workers)
+    runs = run_all(out, RunPlan.make(quick), workers=workers)
+    return tabulate(runs, workers=workers, t0=t0)
+
+
+def tabulate(runs: PaperRuns, *, workers: int | None = None,
+             t0: float | None = None) -> PaperComparison:
+    """The table and figures of runs already made by :func:`paper_comparison` (the two
+    replays are redone; the closed-loop runs are read from ``runs.out_dir``).
+
+    Args:
+        runs: where the runs are (``PaperRuns(out_dir, RunPlan.make(quick))``).
+        workers: processes for the replays.
+        t0: ``time.perf_counter()`` at the start, for the wall time in the table.
+    """
+    t0 = time.perf_counter() if t0 is None else t0
+    out, plan = runs.out_dir, runs.plan
     speeds = plan.speeds
     curves = {(t, v): stance_curves(runs.sweep_run(t, v))
               for t in (SAND, RIGID) for v in speeds}
     model = model_check(runs.dataset_dir, out, workers=workers)
-    track = runs.track_run("exact")
     x_edge = load_terrain("paper_track").edges[0]
-    builder = ClaimBuilder(runs, curves, model, x_edge, first_touchdown_on(track, x_edge))
+    builder = ClaimBuilder(runs, curves, model, x_edge,
+                           first_touchdown_on(runs.track_run("exact"), x_edge))
     rows = tuple(builder.rows())
     fig_dir = out / "figures"
     figs = (
@@ -95,8 +109,8 @@ def paper_comparison(out_dir: str | Path, *, quick: bool = False,
                            fig_dir / "dtheta_r.png", what="dtheta"),
     )
     wall = time.perf_counter() - t0
-    table = write_comparison(out, rows, figs, quick=quick, wall_time_s=wall)
+    table = write_comparison(out, rows, figs, quick=plan.quick, wall_time_s=wall)
     return PaperComparison(out, table, rows, figs, runs, model, wall)
 
 
-__all__ = ["PaperComparison", "paper_comparison"]
+__all__ = ["PaperComparison", "paper_comparison", "tabulate"]

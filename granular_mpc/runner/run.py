@@ -19,7 +19,7 @@ from typing import Callable, Sequence
 from ..analysis.summary import summarize
 from ..columns import HTML_FILE, LOG_DIR, PLOTS_DIR, RESOLVED_FILE, SUMMARY_FILE
 from ..config import ScenarioConfig
-from ..exceptions import GranularMpcError, Interrupted, OutputError, PlantDivergedError
+from ..exceptions import GranularMpcError, OutputError, PlantDivergedError
 from ..output import OutputLock, make_output_folder, write_json
 from ..runlog import RunLog, read_log
 from .build import build_simulation
@@ -126,13 +126,14 @@ def run_scenario(scenario: ScenarioConfig, out_dir: str | Path, *, progress: boo
                 state = sim.new_state()
             except BaseException as exc:        # start-up error or signal: say so, final
                 signals.hold()
-                reason = (f"{exc} during start-up" if isinstance(exc, Interrupted) else
+                stopped = isinstance(exc, KeyboardInterrupt)
+                reason = (f"{exc or 'interrupted by SIGINT'} during start-up" if stopped else
                           f"start-up failed: {type(exc).__name__}: {exc}")
                 summary = {"scenario": scenario.name, "complete": False, "reason": reason,
                            **_provenance(status)}
                 write_json(out / SUMMARY_FILE, summary)
                 status.finish(end_state(False, reason), reason)
-                if isinstance(exc, Interrupted):
+                if stopped:
                     return RunResult(out, summary)
                 raise
             return _run_loop(sim, state, out, log, status, signals, progress=progress,

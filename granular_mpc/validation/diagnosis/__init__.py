@@ -12,10 +12,13 @@ returning a frozen result:
 3. :mod:`.screen` — bounded least squares (:mod:`.regression`): held-out error reduction
    under trial-grouped CV, ΔAICc, bootstrap inclusion, effect size; indistinguishable pairs.
 4. :mod:`.refine` — contenders refined by Gauss–Newton replays (:mod:`.gauss_newton`),
-   the best added, the others re-tested conditionally.
+   the best that passes honest acceptance (:mod:`.acceptance`: its replays improve its
+   credited channels, its coefficients are physical) added, the others re-tested
+   conditionally.
 5. :mod:`.localise` — where, when and with what the residual is structured, before and
    after.
-6. :mod:`.verdict` — ordered verdict rules.
+6. :mod:`.verdict` — ordered verdict rules (``partially_explained`` when the structure
+   that flagged the effect remains after the additions).
 7. :mod:`.report` — ``diagnosis.json`` (:class:`~.result.Diagnosis`), ``report.md``,
    figures.
 
@@ -25,16 +28,21 @@ returning a frozen result:
 
 # the records first: granular_mpc.validation.replay reads diagnosis files through them
 from .result import Diagnosis, FittedParameters, Verdict, load_diagnosis  # noqa: I001
-from .candidates import CandidateSet, Column, build_candidates, candidate_columns
+from .acceptance import coefficient_checks, judge, remaining_cells
+from .acceptance_records import Acceptance, CoefficientCheck
+from .candidates import (CandidateSet, Column, build_candidates, candidate_columns,
+                         dead_candidates)
 from .design import Design, GeometryRows, build_design
 from .localise import localize, where_summary
 from .localization_records import Localization
 from .ranking_records import CandidateStats, ParamEstimate, Ranked
 from .regression import Regression, aicc, fit_bounded, forward_selection
 from .residuals import guard_jumps
-from .screen import candidate_stats, practically_large
+from .report import coefficient_text
+from .screen import candidate_stats, inclusion_ties, practically_large, share_inclusion
 from .thresholds import (LARGE_HELDOUT_REDUCTION, MAX_DELTA_AICC, MIN_EFFECT_SIZE,
                          MIN_HELDOUT_REDUCTION, MIN_INCLUSION, MIN_STANCE_REDUCTION, T_CELL)
+from .verdict import VerdictInputs, decide, error_change
 from .pipeline import diagnose
 
 __all__ = ["diagnose", "Diagnosis", "Verdict", "FittedParameters", "load_diagnosis", "localize",
@@ -43,4 +51,7 @@ __all__ = ["diagnose", "Diagnosis", "Verdict", "FittedParameters", "load_diagnos
            "fit_bounded", "forward_selection", "guard_jumps", "candidate_stats",
            "practically_large", "CandidateStats", "ParamEstimate", "Ranked",
            "MIN_HELDOUT_REDUCTION", "MAX_DELTA_AICC", "MIN_INCLUSION", "MIN_STANCE_REDUCTION",
-           "T_CELL", "MIN_EFFECT_SIZE", "LARGE_HELDOUT_REDUCTION"]
+           "T_CELL", "MIN_EFFECT_SIZE", "LARGE_HELDOUT_REDUCTION", "Acceptance",
+           "CoefficientCheck", "coefficient_checks", "judge", "remaining_cells",
+           "dead_candidates", "coefficient_text", "inclusion_ties", "share_inclusion",
+           "VerdictInputs", "decide", "error_change"]
