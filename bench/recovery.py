@@ -129,11 +129,11 @@ def main() -> None:
         if not (args.reuse and (clean / "meta.yaml").is_file()):
             synthesize("sand_walk", clean, speeds=SPEEDS, steps=args.steps, seed=seed,
                        effects=[effect] if effect else [], noise=0.0, format="parquet",
-                       overrides=[mismatch] if mismatch else [])
+                       overrides=[mismatch] if mismatch else [], overwrite=True)
         for level in args.levels:
             data = root / f"{tag}_n{level:g}"
             if not (args.reuse and (data / "meta.yaml").is_file()):
-                noisy_copy(clean, data, level, seed=seed)
+                noisy_copy(clean, data, level, seed=seed, overwrite=True)
             row = run_case(data, effect, root / f"{tag}_n{level:g}_diag", seed, mismatch)
             row.update(effect=effect or (f"mismatch {mismatch}" if mismatch else "none"),
                        seed=seed, noise=level)
@@ -143,7 +143,7 @@ def main() -> None:
                   f"{'-' if row['coef_err'] is None else format(row['coef_err'], '+.1%')})  "
                   f"{row['channel']}: held-out {'-' if row['heldout_red'] is None else format(row['heldout_red'], '.0%')}"
                   f" replay {'-' if row['replay_red'] is None else format(row['replay_red'], '.0%')}"
-                  f"  [{row['diagnose_s']:.0f} s]", flush=True)
+                  f"  {row['status']}  [{row['diagnose_s']:.0f} s]", flush=True)
     eff = [r for r in rows if r["effect"] != "none" and not r["effect"].startswith("mismatch")]
     nul = [r for r in rows if r["effect"] == "none"]
     mis = [r for r in rows if r["effect"].startswith("mismatch")]

@@ -54,9 +54,10 @@ def run_seed(root: Path, seed: int, steps: int, reuse: bool) -> dict:
     clean, noisy = root / f"s{seed}_clean", root / f"s{seed}_noisy"
     if not (reuse and (clean / "meta.yaml").is_file()):
         synthesize("sand_walk", clean, speeds=SPEEDS, steps=steps, seed=seed,
-                   effects=[f"{HIDDEN}:k={TRUE_K:g}"], noise=0.0, format="parquet")
+                   effects=[f"{HIDDEN}:k={TRUE_K:g}"], noise=0.0, format="parquet",
+                   overwrite=True)
     if not (reuse and (noisy / "meta.yaml").is_file()):
-        noisy_copy(clean, noisy, 1.0, seed=seed)
+        noisy_copy(clean, noisy, 1.0, seed=seed, overwrite=True)
     d = diagnose(noisy, root / f"s{seed}_diag", candidates=LIBRARY + [USER], n_boot=60)
     entry = next(e for e in d.ranking if e.effect == USER)
     c = d.fitted_effects.get(USER, {}).get("c")

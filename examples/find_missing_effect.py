@@ -36,7 +36,8 @@ data = out / "data"
 
 # 1. measurement data with an effect the model does not have
 res = synthesize("sand_walk", data, speeds=[0.15, 0.25, 0.35], duration=seconds, seed=3,
-                 effects=["cohesion:suction=3000"], noise=1.0, format="parquet")
+                 effects=["cohesion:suction=3000"], noise=1.0, format="parquet",
+                 overwrite=True)
 print(f"synth: {sum(res.n_stances.values())} stances in {len(res.trials)} trials -> {data}")
 
 # 2. how wrong is the model, and where?

@@ -149,7 +149,7 @@ def write_bag(folder: Path, log) -> Path:
 def main() -> None:
     OUT.mkdir(parents=True, exist_ok=True)
     truth = load_dataset(synthesize("sand_walk", OUT / "truth", speeds=[0.25], steps=4, seed=5,
-                                    noise=0.0, workers=1).path)
+                                    noise=0.0, workers=1, overwrite=True).path)
     biped = load_biped(truth.meta.robot, with_visuals=False)
     log = lab_log(truth, biped)
     try:

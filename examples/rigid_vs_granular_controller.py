@@ -27,7 +27,8 @@ rows = []
 for controller_terrain in ("plant", "rigid"):
     scenario = load_scenario("sand_walk", [f"controller.terrain={controller_terrain}",
                                            f"sim.duration={seconds}", "output.plots=false"])
-    s = run_scenario(scenario, root / controller_terrain, progress=False).summary
+    s = run_scenario(scenario, root / controller_terrain, progress=False,
+                     overwrite=True).summary
     rows.append(s)
 
 

@@ -24,7 +24,7 @@ out = Path(os.environ.get("GRANULAR_MPC_EXAMPLE_OUT", "runs/examples")) / "veloc
 if __name__ == "__main__":     # the process pool re-imports this file (spawn)
     base, tasks = expand_sweep("velocity_sweep", ["sweep.speeds=[0.2, 0.4]",
                                                   f"sweep.duration={seconds}"])
-    result = run_sweep(tasks, out, workers=2, progress=False)
+    result = run_sweep(tasks, out, workers=2, progress=False, overwrite=True)
     t = result.table
     print(f"{len(t)} runs, {seconds:g} s each; table: {result.csv}")
     print("| terrain | speed [m/s] | mean speed [m/s] | CoT | peak sinkage [mm] | fell |")

@@ -23,7 +23,7 @@ overrides = [f"sim.duration={float(seconds)}"] if seconds else []
 scenario = load_scenario("sand_walk", overrides)          # sim/sand_walk.yaml
 out = Path(os.environ.get("GRANULAR_MPC_EXAMPLE_OUT", "runs/examples")) / "walk_on_sand"
 
-result = run_scenario(scenario, out, progress=False)
+result = run_scenario(scenario, out, progress=False, overwrite=True)
 
 s = result.summary
 for key in ("terrain", "controller_terrain_model", "commanded_speed_mps", "mean_speed_mps",

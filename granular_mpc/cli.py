@@ -7,6 +7,7 @@
     granular-mpc validate DATA_DIR [--model granular|rigid|planar] [--effect NAME …] --out DIR
     granular-mpc diagnose DATA_DIR --out DIR
     granular-mpc import SOURCE --mapping MAP.yaml --out DATA_DIR
+    granular-mpc paper --out DIR [--quick] [--workers N]
     granular-mpc bench [--json DIR]
 
 Bad input (malformed YAML, a key given twice, unknown key, wrong type, a ``--set`` of a
@@ -497,7 +498,7 @@ def diagnose(
                 _effects([c])
         res = run_diagnose(data_dir, out, candidates=candidate or None, seed=seed,
                            terrain=terrain, workers=workers)
-        print(res.verdict["text"])
+        print(res.verdict.text)
         print(f"wrote {out / 'diagnosis.json'}")
 
 
@@ -521,6 +522,22 @@ def import_(
         res = import_log(source, mapping, out, format=format, overwrite=overwrite)
         print(load_dataset(res.path).channel_report())
         print(f"wrote {res.path}")
+
+
+@app.command()
+def paper(
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for paper_comparison.md, its figures and the runs.")],
+    quick: Annotated[bool, typer.Option("--quick", help="Fewer, shorter runs (every row still filled; for tests).")] = False,
+    workers: WorkersOpt = None,
+    debug: DebugOpt = False,
+) -> None:
+    """Regenerate the comparison with the paper: DIR/paper_comparison.md (docs/paper.md)."""
+    from .paper import paper_comparison
+
+    with _errors(debug):
+        res = paper_comparison(out, quick=quick, workers=workers)
+        print(f"{len(res.rows)} claims compared in {res.wall_time_s:.0f} s")
+        print(f"wrote {res.table}")
 
 
 def main() -> None:

@@ -22,6 +22,7 @@ format v1 (``docs/data-format.md``), so a run log is itself a valid data set for
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -106,10 +107,12 @@ class RunLog:
 def read_log(folder: str | Path):
     """Read every complete part of a run log (``DIR`` or ``DIR/log``) as one DataFrame.
 
-    A part that cannot be read (being written when the process died) is skipped.
+    The last part, if it cannot be read (being written when the process died), is
+    skipped quietly. An unreadable part *before* the last one leaves a hole in the log:
+    it is skipped with a warning naming the part and the gap in simulated time.
 
     Raises:
-        OutputError: the folder holds no log part.
+        OutputError: the folder holds no readable log part.
     """
     import pandas as pd
 
@@ -120,11 +123,23 @@ def read_log(folder: str | Path):
     if not parts:
         raise OutputError(f"no log parts in {folder}")
     frames = []
-    for p in parts:
+    bad: list[tuple[int, Path, str]] = []
+    for i, p in enumerate(parts):
         try:
             frames.append(pd.read_parquet(p))
-        except Exception:  # a part being written when the process died: skip it
-            continue
+        except Exception as exc:  # noqa: BLE001 - pyarrow raises many kinds
+            bad.append((len(frames), p, type(exc).__name__))
+    if not frames:
+        raise OutputError(f"no readable log part in {folder} ({len(parts)} unreadable)")
+    for k, p, why in bad:
+        if k == len(frames) and p == parts[-1]:
+            continue                    # the part being written at the end
+        before = frames[k - 1][TIME].iloc[-1] if k > 0 and len(frames[k - 1]) else None
+        after = frames[k][TIME].iloc[0] if k < len(frames) and len(frames[k]) else None
+        gap = (f"t = {before:.3f} s to {after:.3f} s is missing" if before is not None
+               and after is not None else "its rows are missing")
+        warnings.warn(f"log part {p.name} cannot be read ({why}) and is skipped: {gap}",
+                      stacklevel=2)
     return pd.concat(frames, ignore_index=True)
 
 

@@ -329,3 +329,15 @@ def test_synth_never_replaces_measured_data_or_a_foreign_folder(tmp_path):
     _exit_2_no_traceback(invoke("synth", SAND, "--out", foreign, "--steps", "1"),
                          "not empty", "notes.txt")
     assert [p.name for p in foreign.iterdir()] == ["notes.txt"]
+
+
+def test_garbled_urdf_is_exit_2_naming_the_file(tmp_path):
+    robot = yaml.safe_load((ROOT / "models" / "yobogo10s.yaml").read_text())
+    (tmp_path / "yobogo10s.urdf").write_bytes((ROOT / "models" / "yobogo10s.urdf").read_bytes()[:300])
+    (tmp_path / "robot.yaml").write_text(yaml.safe_dump(robot))
+    scenario = yaml.safe_load((SIM / "drop_sand.yaml").read_text())
+    scenario["robot"] = str(tmp_path / "robot.yaml")
+    (tmp_path / "drop.yaml").write_text(yaml.safe_dump(scenario))
+    _exit_2_no_traceback(invoke("run", tmp_path / "drop.yaml", "--out", tmp_path / "r"),
+                         "yobogo10s.urdf")
+    assert not (tmp_path / "r").exists()

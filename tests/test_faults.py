@@ -36,8 +36,9 @@ def _drop_sweep(tmp_path: Path, n_runs: int) -> Path:
 
 
 def _wait_for_logs(out: Path, n: int, proc: subprocess.Popen, timeout: float = 150.0) -> None:
+    """Wait until ``n`` different run folders under ``out`` have a log part."""
     deadline = time.time() + timeout
-    while sum(1 for _ in out.glob("**/log/part-*.parquet")) < n:
+    while len({p.parent.parent for p in out.glob("**/log/part-*.parquet")}) < n:
         assert proc.poll() is None, proc.communicate()
         assert time.time() < deadline, f"fewer than {n} log parts in {out}"
         time.sleep(0.1)

@@ -19,12 +19,13 @@ def test_gym_rollout_example_runs_and_reports_throughput(tmp_path):
 
     No robot falls in 0.3 s, so there are exactly 4 episodes of 30 steps: even with no
     control at all, the standing robot is an inverted pendulum (l ≈ 0.45 m,
-    ω = √(g/l) ≈ 4.7 1/s) started within the reset noise (0.02 rad) of upright, which
-    needs acosh(0.8 / 0.02) / ω ≈ 0.9 s to reach the termination tilt of 0.8 rad.
+    ω = √(g/l) ≈ 4.7 1/s) started within the reset noise of upright (θ0 ≲ 0.02 rad,
+    θ̇0 ≲ 0.02 rad/s), θ(t) = θ0 cosh ωt + (θ̇0/ω) sinh ωt: ≈ 0.9 s to reach the
+    termination tilt of 0.8 rad, 0.05 rad at 0.3 s.
     Reward per step (envs/task.py): at most w_speed + w_alive = 1.5; at least the alive
-    bonus 0.5 less the tilt penalty (0.5 · tilt², tilt ≤ 0.02 cosh(ω 0.3 s) = 0.04 rad:
-    < 1e-3) and the action-rate penalty (0.01 · Σ Δa²; the PD's actions are a few
-    hundredths of the range at these tilts: < 0.01) — bound 0.4 per step (measured 0.51).
+    bonus 0.5 less the tilt penalty (0.5 · tilt² < 2e-3) and the action-rate penalty
+    (0.01 · Σ Δa²; the PD's actions are a few hundredths of the range at these tilts:
+    < 0.01) — bound 0.4 per step (measured 0.51).
     The throughput figures depend on wall-clock time and are only checked for sign and
     their ratio (which is exact up to the printed 4 significant digits)."""
     env = dict(os.environ)

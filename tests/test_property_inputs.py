@@ -81,12 +81,7 @@ def test_data_loader_on_mutated_data_sets(small_dataset, tmp_path_factory, targe
         pass
 
 
-@pytest.mark.parametrize("target", [
-    "meta",
-    pytest.param("trial", marks=pytest.mark.xfail(
-        raises=UnicodeDecodeError, strict=True,
-        reason="validation/dataformat/readers.py (not ours) reads a non-UTF-8 CSV header "
-               "into pyarrow and lets UnicodeDecodeError out; fix asked of the lead"))])
+@pytest.mark.parametrize("target", ["meta", "trial"])
 def test_data_loader_names_a_file_that_is_not_utf8(small_dataset, tmp_path, target):
     folder = tmp_path / "ds"
     shutil.copytree(small_dataset, folder)

@@ -198,3 +198,20 @@ def test_second_cli_writer_is_refused_and_a_killed_run_reads_dead(tmp_path):
                            timeout=120)
     assert c.returncode == 0, c.stderr
     assert "stale lock" in c.stderr and run_status(out).state == "complete"
+
+
+def test_an_unreadable_log_part_mid_run_is_named_with_its_time_gap(tmp_path):
+    sc = load_scenario("drop_sand", ["sim.duration=0.05", "output.flush_every=5",
+                                     "output.plots=false"])
+    out = run_scenario(sc, tmp_path / "r", progress=False).out_dir
+    parts = sorted((out / "log").glob("part-*.parquet"))
+    assert len(parts) >= 3
+    full = read_log(out)
+    parts[-1].write_bytes(b"half written")                   # the end: skipped quietly
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert len(read_log(out)) < len(full)
+    parts[1].write_bytes(b"garbled")                          # a hole mid-run: warned
+    with pytest.warns(UserWarning, match=rf"{parts[1].name} cannot be read .* t = [0-9.]+ s to "
+                                         r"[0-9.]+ s is missing"):
+        read_log(out)

@@ -135,3 +135,10 @@ def test_walk_across_the_edge_in_closed_loop():
                for s in ("left", "right")]
     assert (on_sand[0] | on_sand[1]).any()          # a foot sank into the sand segment
     assert log["com_x"].iloc[-1] > 0.2
+
+
+def test_a_track_needs_the_controller_to_name_its_ground():
+    sc = load_scenario("sim/paper_protocol.yaml", ["controller.terrain=plant"])
+    with pytest.raises(ConfigError) as err:
+        build_simulation(sc)
+    assert err.value.key == "controller.terrain"

@@ -20,15 +20,16 @@ Three sources say when, in this order of preference (``source="auto"``):
   starts when the plan says so, not at touchdown: on sand the plan is ``none`` during load
   transfer, so a planned stance begins with the foot already deep in the sand.
 
-**Debounce** (``"contact"`` and ``"force"``; ``debounce`` samples, default 1): in each
-foot's on-ground mask, off-ground gaps of at most ``debounce`` samples between two
-on-ground runs are filled, then on-ground runs of at most ``debounce`` samples are removed.
-Reason: at touchdown and lift-off the foot grazes the surface (a contact penetration or a
-force within noise of zero) and a single logged sample can flip. Undebounced, one flipped
-sample splits a stance in two (a second "touchdown" mid-stance, with its own phase 0 %) or
-creates a one-sample stance. One sample (2 ms at the default 500 Hz log) is far shorter
-than any real swing or stance (≥ 0.1 s), so the debounce cannot merge two real stances nor
-drop a real one. The planned source is a schedule label and is not debounced (it does not
+**Debounce** (``"contact"`` and ``"force"``; default 20 ms, at least one sample): in each
+foot's on-ground mask, off-ground gaps of at most that many samples between two on-ground
+runs are filled, then on-ground runs of at most that many samples are removed. Reason: at
+touchdown and lift-off the foot grazes the surface (a contact penetration or a force
+within noise of zero) and single logged samples flip; on rigid ground the landing foot
+bounces (a 2–4 ms contact, ≈ 10 ms in the air, then the stance). Undebounced, this splits
+a stance in two (a second "touchdown" with its own phase 0 %) or creates a stance of a few
+samples. The touchdown is the first contact of the merged run. 20 ms is far shorter than
+any real swing or stance (≥ 0.1 s), so the debounce cannot merge two real stances nor drop
+a real one. The planned source is a schedule label and is not debounced (it does not
 chatter). Runs shorter than ``min_samples`` (default 3) are dropped afterwards.
 
 **Times.** ``t_touchdown`` and ``t_liftoff`` [s] are the times of the first and the last
@@ -57,7 +58,11 @@ STANCE_SOURCES = ("contact", "force", "planned")
 """Where a stance comes from (see the module docstring)."""
 SOURCE_OPTIONS = ("auto",) + STANCE_SOURCES
 DEFAULT_DEBOUNCE = 1
-"""Samples of on/off chatter removed from contact and force masks."""
+"""Least number of samples of on/off chatter removed from contact and force masks."""
+DEFAULT_DEBOUNCE_S = 0.02
+"""On/off chatter removed from contact and force masks [s] (at least
+:data:`DEFAULT_DEBOUNCE` samples): a foot landing on rigid ground bounces (a 2–4 ms
+contact, ≈ 10 ms off, then the stance), which must not start a stance of its own."""
 DEFAULT_FORCE_FRACTION = 0.05
 """Default force threshold as a fraction of the robot weight [-]."""
 DEFAULT_MIN_SAMPLES = 3
@@ -238,7 +243,8 @@ def find_stances(log: pd.DataFrame, source: str = "auto", *,
         log: run log or measurement DataFrame with ``time`` [s] and the source's columns.
         source: ``"auto"``, ``"contact"``, ``"force"`` or ``"planned"`` (module docstring).
         debounce_samples: chatter removed by :func:`debounce`; default
-            :data:`DEFAULT_DEBOUNCE` for contact/force and 0 for planned.
+            :data:`DEFAULT_DEBOUNCE_S` in samples of the log's median time step (at least
+            :data:`DEFAULT_DEBOUNCE`) for contact/force, and 0 for planned.
         force_threshold_N: on-ground vertical force [N] for ``"force"``; default
             :func:`force_threshold`.
         min_samples: runs with fewer rows are dropped (at least 2 are needed for a phase).
@@ -251,11 +257,16 @@ def find_stances(log: pd.DataFrame, source: str = "auto", *,
         ValueError: missing columns, time not strictly increasing, unknown source.
     """
     src = resolve_source(log, source)
-    k = (0 if src == "planned" else DEFAULT_DEBOUNCE) if debounce_samples is None \
-        else int(debounce_samples)
     masks = {side: on_ground_mask(log, side, src, force_threshold_N=force_threshold_N,
                                   require_contact=require_contact) for side in FOOT_SIDES}
     t = _time(log)
+    if debounce_samples is not None:
+        k = int(debounce_samples)
+    elif src == "planned":
+        k = 0
+    else:
+        step = float(np.median(np.diff(t))) if len(t) > 1 else DEFAULT_DEBOUNCE_S
+        k = max(DEFAULT_DEBOUNCE, int(round(DEFAULT_DEBOUNCE_S / step)))
     n = len(log)
     out = []
     m_min = max(int(min_samples), 2)
@@ -316,7 +327,7 @@ def table_source(segments: pd.DataFrame) -> str:
 
 __all__ = [
     "Stance", "STANCE_SOURCES", "SOURCE_OPTIONS", "SOURCE_COL", "STANCE_TABLE_COLUMNS",
-    "DEFAULT_DEBOUNCE", "DEFAULT_FORCE_FRACTION", "DEFAULT_MIN_SAMPLES", "true_runs",
+    "DEFAULT_DEBOUNCE", "DEFAULT_DEBOUNCE_S", "DEFAULT_FORCE_FRACTION", "DEFAULT_MIN_SAMPLES", "true_runs",
     "debounce", "planned_column", "resolve_source", "force_threshold", "on_ground_mask",
     "find_stances", "stance_table", "table_source",
 ]

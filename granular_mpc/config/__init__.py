@@ -31,13 +31,15 @@ from .scenario import (ActuatorsConfig, DropConfig, FallConfig, GuideRigConfig,
                        JointFrictionConfig, MetricsConfig, MotorConfig, OutputConfig,
                        PushConfig, ScenarioConfig, SimConfig, SweepConfig, Vector3)
 from .schema_walk import model_fields_at
-from .terrain import GranularTerrainConfig, RFTCoefficients, RigidTerrainConfig, TerrainConfig
+from .terrain import (GranularTerrainConfig, RFTCoefficients, RigidTerrainConfig,
+                      TerrainConfig, TrackSegment, TrackTerrainConfig)
 
 __all__ = [
     "StrictModel", "PositiveFloat", "NonNegFloat", "FiniteFloat",
     "format_location", "model_fields_at", "validate",
     "EffectSpec", "parse_effect_string",
     "RFTCoefficients", "GranularTerrainConfig", "RigidTerrainConfig", "TerrainConfig",
+    "TrackSegment", "TrackTerrainConfig",
     "FootGeometry", "FootConfig", "RobotConfig",
     "GaitConfig", "SwingConfig", "FootholdConfig", "MPCConfig", "WBCConfig", "ControllerConfig",
     "CommandConfig",

@@ -97,6 +97,20 @@ class ClaimBuilder:
         v = s.get(f"cot_{READING}")
         return float("nan") if v is None or s.get("fell") else float(v)
 
+    def falls(self, terrains: tuple[str, ...] = (SAND, RIGID)) -> str:
+        """Sweep runs on ``terrains`` that fell (left out of the speed rows), as text."""
+        out = []
+        for t in terrains:
+            for v in self.runs.plan.speeds:
+                s = self.summary(t, v)
+                if s.get("fell"):
+                    out.append(f"{t} {v:g} m/s fell at {_fmt(s.get('fall_time_s'))} s "
+                               f"({s.get('fall_reason')})")
+        if not out:
+            return ""
+        return ("; left out: " + ", ".join(out) + " — the fall is not explained by a "
+                "measurement yet")
+
     def power_spread(self, terrain: str) -> str:
         """Mean actuator power per speed (E / window) — measured, for the U-shape rows."""
         out = []
@@ -155,14 +169,15 @@ class ClaimBuilder:
         ok = [r for r in ratios if math.isfinite(r)]
         lo, hi = (min(ok), max(ok)) if ok else (math.nan, math.nan)
         per = ", ".join(f"{v:g}: {_fmt(r)}" for v, r in zip(speeds, ratios))
+        falls = self.falls()
         inside = bool(ok) and _agrees(lo, 1.12) and _agrees(hi, 1.62)
         rows = [ClaimRow(
             "cot_ratio_range", f"sand/rigid CoT ratio over {speeds[0]:g}–{speeds[-1]:g} m/s "
                                "(Fig. 6d)",
             "1.12–1.62", f"{_fmt(lo)}–{_fmt(hi)} ({READING}; per speed {per})",
             f"min {_ratio(lo, 1.12)}, max {_ratio(hi, 1.62)}", self.p_sweep,
-            "agrees (both ends within 0.8–1.25 × the paper's)" if inside else
-            "not explained by a measurement yet (see rows cot_sand, cot_rigid)",
+            ("agrees (both ends within 0.8–1.25 × the paper's)" if inside else
+             "not explained by a measurement yet (see rows cot_sand, cot_rigid)") + falls,
             self.runs.rel(self.runs.sweep_dir), lo)]
         for terrain, key in ((SAND, "u_shape_sand"), (RIGID, "u_shape_rigid")):
             shape = speed_shape(speeds, [self.cot(terrain, v) for v in speeds])
@@ -171,7 +186,8 @@ class ClaimBuilder:
                      " (Fig. 6d, order-2 fit)",
                 "U-shaped", f"{shape.trend} (order-2 coefficient {_fmt(shape.a, 3)})",
                 "— (qualitative: the shape of the fit)", self.p_sweep,
-                "agrees" if shape.u_shaped else self.power_spread(terrain),
+                ("agrees" if shape.u_shaped else self.power_spread(terrain))
+                + self.falls((terrain,)),
                 self.runs.rel(self.runs.sweep_dir), shape.a))
         return rows
 
@@ -234,8 +250,9 @@ class ClaimBuilder:
                      f"median); {_fmt(cr.r_eff_com_m, 3)} m with ‖v_CoM‖ as numerator",
                      _ratio(cr.r_eff_contact_m, cr.h_com_m), self.p_sweep,
                      "agrees" if _agrees(cr.r_eff_contact_m, cr.h_com_m) else
-                     "definition, measured in the same run: the contact point of a rolling sole "
-                     f"moves at ≈ sole radius × θ̇_r (ours {_fmt(cr.r_eff_contact_m, 3)} m); "
+                     "definition, measured in the same run: from the contact point's velocity "
+                     "R_eff is of the sole's size (sole radius 0.041 m; ours "
+                     f"{_fmt(cr.r_eff_contact_m, 3)} m), not the leg's; "
                      f"with the CoM velocity the same ratio is {_fmt(cr.r_eff_com_m, 3)} m "
                      f"(= {_fmt(cr.r_eff_com_m / cr.h_com_m)} h_CoM) — docs/analysis.md §2",
                      self.src(RIGID, FIG6_SPEED), cr.r_eff_contact_m)]

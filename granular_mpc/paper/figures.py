@@ -41,9 +41,13 @@ def plot_stance_curves(curves: Mapping[str, StanceCurves], path: Path, *, what: 
     """Mean cumulative CoT (``what="cot"``) or Δθ_r (``"dtheta"``) over stance phase."""
     fig = Figure(figsize=(5, 3.6))
     ax = fig.add_subplot()
+    seen: dict[str, int] = {}
     for label, c in curves.items():
         y = c.cot_cum if what == "cot" else c.dtheta_r_deg
-        ax.plot(PHASE, y, color=COLOURS.get(label.split(" ")[0]), label=f"{label} (n={c.n_stances})")
+        terrain = label.split(" ")[0]
+        k = seen[terrain] = seen.get(terrain, -1) + 1        # 2nd curve of a terrain: dashed
+        ax.plot(PHASE, y, color=COLOURS.get(terrain), linestyle=("-", "--", ":")[k % 3],
+                label=f"{label} (n={c.n_stances})")
     ax.set_xlabel("stance [%] (touchdown to lift-off)")
     if what == "cot":
         ax.set_ylabel("cumulative CoT, E(t)/(W d_stance) [-]")

@@ -150,6 +150,11 @@ def build_simulation(scenario: ScenarioConfig, *, biped: Biped | None = None,
         biped = Biped.from_config(scenario.robot)
     plant_terrain = build_terrain(scenario.terrain, scenario.robot, extra_effects=extra_effects)
     ct_name = scenario.controller.terrain
+    if ct_name == "plant" and plant_terrain.kind == "track" and scenario.mode == "walk":
+        raise ConfigError("a track terrain changes along x, and the controller's ground "
+                          "model is one medium: name the one it believes in",
+                          key="controller.terrain", value="plant",
+                          allowed="a terrain name, e.g. rigid or dry_sand")
     if ct_name == "plant" and not extra_effects:
         ctrl_terrain = plant_terrain
     elif ct_name == "plant":

@@ -82,7 +82,8 @@ def sweep_task(payload: Mapping[str, Any]) -> dict:
                            overwrite=bool(payload.get("overwrite", False)))
         summary = res.summary
     except KeyboardInterrupt as exc:     # a signal before the run folder was touched
-        summary = {"complete": False, "reason": str(exc) or "interrupted by SIGINT"}
+        summary = {"complete": False,
+                   "reason": f"{exc or 'interrupted by SIGINT'} before the run started"}
     except Exception as exc:
         summary = {"complete": False, "reason": f"{type(exc).__name__}: {exc}"}
     return {"name": name, "params": params, "run_dir": str(run_dir), "summary": summary,

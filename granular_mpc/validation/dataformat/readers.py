@@ -38,9 +38,22 @@ def read_csv(path: Path, file: str) -> TrialRead:
         return "skip"
 
     try:
-        size = path.stat().st_size
+        raw = path.read_bytes()
+    except OSError as exc:
+        problems.append(DataProblem(file, f"cannot read: {exc.strerror or exc}"))
+        return None, np.zeros(0, dtype=np.int64), problems
+    try:
+        raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        problems.append(DataProblem(file, f"not UTF-8 text: byte {exc.start} (line {line}) is "
+                                    f"0x{raw[exc.start]:02x}; is this a CSV file? Save it as "
+                                    "UTF-8 (or plain ASCII)"))
+        return None, np.zeros(0, dtype=np.int64), problems
+    try:
+        size = len(raw)
         table = pacsv.read_csv(
-            path,
+            pa.BufferReader(raw),                # the bytes already read and checked
             # one block: column types are inferred from the whole file, and row numbers are known
             read_options=pacsv.ReadOptions(use_threads=False,
                                            block_size=int(min(max(size + 1, 1 << 16), 2**31 - 1))),
