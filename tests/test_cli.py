@@ -72,6 +72,7 @@ def test_default_output_folder_is_runs_name_timestamp(tmp_path):
     assert (runs[0] / "summary.json").is_file()
 
 
+@pytest.mark.timing
 def test_sigint_halfway_leaves_a_replayable_log_and_an_incomplete_summary(tmp_path):
     out = tmp_path / "interrupted"
     exe = Path(sys.executable).with_name("granular-mpc")
@@ -80,6 +81,7 @@ def test_sigint_halfway_leaves_a_replayable_log_and_an_incomplete_summary(tmp_pa
                              "--out", str(out), "-q"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
+        # two 50-row parts take ≈ 1 s idle; 120 s is a generous bound at load 2
         deadline = time.time() + 120
         while len(list((out / "log").glob("part-*.parquet"))) < 2:
             assert proc.poll() is None, proc.communicate()
