@@ -17,7 +17,7 @@ from granular_mpc.runlog import read_log
 KEYS = ("cot_sand", "cot_rigid", "cot_ratio_02", "cot_ratio_range", "u_shape_sand",
         "u_shape_rigid", "cost_opening", "pullout_jump", "plateau_sand", "plateau_fades",
         "plateau_rigid", "r_eff_rigid", "rigid_model_grf", "hip_knee_better",
-        "rigid_controller_on_sand")
+        "planar_model", "rigid_controller_on_sand")
 
 
 @pytest.fixture(scope="module")
@@ -87,6 +87,16 @@ def test_model_rows_from_the_reports(comparison):
     better = sum(rep["granular"]["overall_rmse"]["granular"][c]
                  < rep["rigid"]["overall_rmse"]["rigid"][c] for c in joints)
     assert comparison.row("hip_knee_better").value == better
+
+
+def test_planar_row_from_its_report(comparison):
+    rep = {m: json.loads((comparison.out_dir / f"validate_{m}" / "report.json").read_text())
+           for m in ("granular", "planar")}
+    channels = ("q_left_hip_pitch", "q_left_knee", "q_right_hip_pitch", "q_right_knee",
+                "grf_x", "grf_z", "intrusion_z")
+    ratios = [rep["planar"]["overall_rmse"]["planar"][c]
+              / rep["granular"]["overall_rmse"]["granular"][c] for c in channels]
+    assert comparison.row("planar_model").value == pytest.approx(max(ratios))
 
 
 def test_track_row_from_the_exact_protocol_run(comparison):

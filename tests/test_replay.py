@@ -283,3 +283,13 @@ def test_a_sensor_effect_reading_a_missing_column_is_refused_up_front(workbench_
     with pytest.raises(ConfigError, match="_test_bad_sensor.*'load_cell_raw'"):
         validate(workbench_data("null"), None, model="rigid", effects=["_test_bad_sensor"],
                  workers=1, figures=False)
+
+
+@pytest.mark.parametrize("content", [[1, 2, 3], {"zeta": "abc"}, {"cohesion": {"suction": [1]}},
+                                     {"fitted_effects": {"cohesion": 3}}, "text"])
+def test_fitted_parameters_of_the_wrong_shape_name_the_file(tmp_path, content):
+    p = tmp_path / "params.json"
+    p.write_text(json.dumps(content))
+    with pytest.raises(ConfigError, match="params.json") as err:
+        load_fitted(p)
+    assert err.value.key == "--params"

@@ -1,8 +1,12 @@
 """The paper's model comparison (its Figs. 4 and 5) on a synthesized data set.
 
-The data set (``OUT/dataset``) holds stances of the plant walking on sand; each stance is
-replayed from its measured touchdown state by the granular model and by the rigid-ground
-model (:func:`granular_mpc.validation.replay.validate`), and scored against the data.
+The data set (``OUT/dataset``) holds stances of the 3-D plant walking on sand; each stance
+is replayed from its measured touchdown state, driven by the measured joint torques, by
+the 3-D granular model, by the rigid-ground model and by the paper's own decoupled model
+(sagittal 7-DoF + frontal 5-DoF, ``planar``)
+(:func:`granular_mpc.validation.replay.validate`), and scored against the data. The
+planar row is the paper's contribution in the loop: how well the decoupled model follows
+the 3-D plant over whole stances under the same torques.
 """
 
 from __future__ import annotations
@@ -18,7 +22,9 @@ from ..validation.replay import validate
 
 #: the paper's "hip and knee joint angles, q_{2,3,5,6}" (Fig. 5a)
 HIP_KNEE = ("q_left_hip_pitch", "q_left_knee", "q_right_hip_pitch", "q_right_knee")
-MODELS = ("granular", "rigid")
+MODELS = ("granular", "rigid", "planar")
+#: channels of the planar-model agreement row (joint angles, GRF, intrusion)
+AGREEMENT = HIP_KNEE + ("grf_x", "grf_z", "intrusion_z")
 
 
 @dataclass(frozen=True)
@@ -38,6 +44,10 @@ class ModelCheck:
     n_stances: int
     rmse: dict
     grf_magnitude_ratio: dict
+
+    def planar_to_granular(self, channel: str) -> float:
+        """RMSE of the decoupled planar model over that of the 3-D granular model [-]."""
+        return self.rmse["planar"][channel] / self.rmse["granular"][channel]
 
     def hip_knee_better(self) -> int:
         """How many of the four hip/knee angles the granular model predicts better."""
@@ -73,4 +83,5 @@ def grf_magnitude_ratio(report, model: str) -> dict:
     return out
 
 
-__all__ = ["ModelCheck", "model_check", "grf_magnitude_ratio", "HIP_KNEE", "MODELS"]
+__all__ = ["ModelCheck", "model_check", "grf_magnitude_ratio", "HIP_KNEE", "MODELS",
+           "AGREEMENT"]

@@ -2,7 +2,8 @@
 
 The checks, one file each: :mod:`.checks_columns` (header, numbers, stance labels),
 :mod:`.checks_time`, :mod:`.checks_trunk` (orientation, position, velocities),
-:mod:`.checks_joints`, :mod:`.checks_contact`; :mod:`.checks_rates` compares velocities
+:mod:`.checks_joints`, :mod:`.checks_contact`, :mod:`.checks_stance` (left/right swapped
+against the kinematics); :mod:`.checks_rates` compares velocities
 with derivatives for the last three. A new check is a new ``checks_<what>.py`` called
 from here.
 """
@@ -20,6 +21,7 @@ from .channels import ChannelSet
 from .checks_columns import check_header, numeric_values, stance_problems
 from .checks_contact import check_contact
 from .checks_joints import check_joints
+from .checks_stance import check_stance_sides
 from .checks_time import check_time
 from .checks_trunk import check_base, check_orientation
 from .robot_facts import RobotFacts
@@ -89,6 +91,8 @@ def check_frame(df: pd.DataFrame, rows: np.ndarray, *, file: str, strict_types: 
         if STANCE not in df.columns and channels.declared and not t.problems:
             derived = _derive(t, facts, channels)
         check_contact(t, labels if derived is None else derived[0], facts, speed, time_ok, tol)
+        if labels is not None and not t.problems:
+            check_stance_sides(t, labels, facts)
     problems += t.problems
     if t.problems:
         return None

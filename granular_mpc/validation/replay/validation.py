@@ -47,21 +47,34 @@ def load_fitted(params: str | Path | Mapping | None) -> tuple[dict, dict]:
     """
     if params is None:
         return {}, {}
+    where = "the --params mapping"
     if isinstance(params, (str, Path)):
         p = Path(params)
         if p.is_dir():
             p = p / DIAGNOSIS_FILE
         try:
+            where = str(p)
             params = json.loads(p.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError) as exc:
+        except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise ConfigError(f"cannot read fitted parameters from {p}: {exc}",
                               key="--params") from None
-    params = dict(params)
-    if FittedParameters.is_diagnosis(params):
-        fitted = FittedParameters.from_dict(params)
-        return dict(fitted.calibration), {k: dict(v) for k, v in fitted.effects.items()}
-    return {k: float(v) for k, v in params.items() if not isinstance(v, Mapping)}, \
-        {k: dict(v) for k, v in params.items() if isinstance(v, Mapping)}
+    shape = ("a diagnosis.json (with 'calibration.values' and/or 'fitted_effects'), or an "
+             "object {θ name: number, effect name: {parameter: number}}")
+    if not isinstance(params, Mapping):
+        raise ConfigError(f"fitted parameters in {where} must be {shape}, got a "
+                          f"{type(params).__name__}", key="--params", value=where)
+    try:
+        if FittedParameters.is_diagnosis(params):
+            fitted = FittedParameters.from_dict(params)
+            cal = {k: float(v) for k, v in fitted.calibration.items()}
+            eff = {k: {n: float(x) for n, x in dict(v).items()} for k, v in fitted.effects.items()}
+            return cal, eff
+        return ({k: float(v) for k, v in params.items() if not isinstance(v, Mapping)},
+                {k: {n: float(x) for n, x in v.items()} for k, v in params.items()
+                 if isinstance(v, Mapping)})
+    except (TypeError, ValueError, AttributeError) as exc:
+        raise ConfigError(f"fitted parameters in {where} must be {shape} ({exc})",
+                          key="--params", value=where) from None
 
 
 @dataclass(frozen=True)
