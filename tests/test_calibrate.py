@@ -136,13 +136,6 @@ def test_samples_that_are_not_sinking_are_not_used(sand, truth):
     assert set(s2["trial"]) == {"trial0", "trial1"}
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "calibrate: with JᵀJ rank-deficient (one operating point) np.linalg.inv returns a "
-    "matrix with negative diagonal entries from round-off; np.clip(diag, 0, None) turns "
-    "them into standard errors of exactly 0, and identified = se < 0.25·|p| then reports "
-    "both parameters identified with zero error bars (measured: se_gn = {zeta: 0.0, "
-    "phi_s: 0.0}, identified True/True). A rank or condition check on JᵀJ (or NaN for a "
-    "negative variance) is needed."))
 def test_a_single_operating_point_does_not_identify_zeta_and_phi(sand, truth):
     """Every sample at the same depth, pitch and direction: F_z = ζ·g(φ_s) at one point
     cannot separate ζ from φ_s; the fit must say so rather than report an estimate."""

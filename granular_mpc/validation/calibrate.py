@@ -36,6 +36,10 @@ from .prepare import StanceWindow
 CAL_PARAMS = {"zeta": (0.1, 6.0), "phi_s": (math.radians(25.0), math.radians(50.0))}
 
 
+#: relative singular-value floor of the Jacobian below which (ζ, φ_s) are not separable
+RANK_TOL = 1e-8
+
+
 @dataclass(frozen=True)
 class Calibration:
     """Result of :func:`calibrate`.
@@ -206,11 +210,19 @@ def calibrate(windows: Sequence[StanceWindow], terrain, *, n_slices: int,
     s2 = float(r @ r) / dof
     rho = _lag1(r, s["window"])
     infl = (1.0 + rho) / (1.0 - rho)
-    try:
-        cov = np.linalg.inv(Jm.T @ Jm) * s2 * infl
-    except np.linalg.LinAlgError:
+    # a rank-deficient Jacobian (e.g. every sample at one operating point: F = ζ g(φ_s)
+    # cannot separate ζ from φ_s) has no covariance: its standard errors are NaN (never the
+    # zeros that round-off's negative variances would clip to), so nothing is identified
+    sv = np.linalg.svd(Jm, compute_uv=False) if Jm.size else np.zeros(0)
+    if sv.size < len(params) or not np.all(np.isfinite(sv)) or sv[-1] <= RANK_TOL * sv[0]:
         cov = np.full((len(params), len(params)), np.nan)
-    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    else:
+        try:
+            cov = np.linalg.inv(Jm.T @ Jm) * s2 * infl
+        except np.linalg.LinAlgError:
+            cov = np.full((len(params), len(params)), np.nan)
+    var = np.diag(cov)
+    se = np.where(var >= 0.0, np.sqrt(np.abs(var)), np.nan)
     corr = float(cov[0, 1] / (se[0] * se[1])) if len(params) == 2 and se.all() else float("nan")
     # one-step bootstrap over whole trials
     rng = np.random.default_rng(seed)
