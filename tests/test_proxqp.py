@@ -171,7 +171,8 @@ def test_unknown_proxsuite_build_is_a_clear_error(monkeypatch):
 
 
 # --------------------------------------------------------------------------------------
-# the default (native, vectorised) build: one explicit multi-seed statistical test
+# the opt-in native (vectorised, not bit-reproducible) build: one explicit multi-seed
+# statistical test
 # --------------------------------------------------------------------------------------
 
 _NATIVE = r"""
@@ -209,9 +210,9 @@ NATIVE_SPEED_BUDGET = 0.25
 
 
 @pytest.mark.slow
-def test_default_build_walks_on_sand_over_perturbed_seeds(tmp_path):
-    """The suite's closed loops run on the generic build; this runs the default (native,
-    AVX2 where the CPU has it) build that users get, over three perturbed starts (initial
+def test_native_build_walks_on_sand_over_perturbed_seeds(tmp_path):
+    """The suite's closed loops run on the generic build (the package default); this runs
+    the opt-in native build (AVX2 where the CPU has it), over three perturbed starts (initial
     sole depth, a lateral push): every run walks without falling (rate 3/3) at a mean
     speed within the budget of the command. ~35 s at load 2."""
     env = dict(os.environ, GRANULAR_MPC_PROXSUITE="native", MPLBACKEND="Agg")
