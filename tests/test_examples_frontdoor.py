@@ -22,7 +22,7 @@ controller of commit f81274c):
 * Speed: |mean − command| ≤ SPEED_BUDGET · command, a stated budget (the foothold speed
   loop closes its last ~10–15 % with an integral gain of 0.5 1/s over the first
   seconds). Measured at 5 s: 0.176 m/s for 0.2 m/s (−12 %), 0.026 m/s inside the bound
-  (the controller before f81274c: 0.171 m/s). The default (native) build over perturbed
+  (the controller before f81274c: 0.171 m/s). The opt-in native build over perturbed
   starts is checked separately (tests/test_proxqp.py): 0.176–0.177 m/s.
 * Sinkage (derived, not measured): a walking foot on sand sinks at least as deep as the
   quasi-static depth under half the weight (12.6 mm for this robot; single stance carries
