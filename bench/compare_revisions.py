@@ -29,44 +29,15 @@ import time
 
 import numpy as np
 
-#: runs inside the subprocess: argv = seconds speed terrain; prints one JSON line
-_MEASURE = r"""
-import json, sys, time
-import numpy as np
-from granular_mpc.control.solvers.proxqp import proxsuite_build
-from granular_mpc.runner import build_simulation, closed_loop
-from granular_mpc.scenario import load_scenario
+BENCH_DIR = os.path.dirname(os.path.abspath(__file__))
 
-seconds, speed, terrain = float(sys.argv[1]), float(sys.argv[2]), sys.argv[3]
-sc = load_scenario("sim/sand_walk.yaml", [f"terrain={terrain}", f"command.speed={speed}",
-                                          f"sim.duration={seconds}"])
-sim = build_simulation(sc)
-state = sim.new_state()
-rows = []
-t0 = time.perf_counter()
-for row in closed_loop(sim, state):
-    rows.append(row)
-wall = time.perf_counter() - t0
-rec = state.controller.records
-mpc = [r for r in rec if r.kind == "mpc"]
-wbc = [r for r in rec if r.kind == "wbc"]
-sim_time = state.plant.t
-q = np.array([state.plant.q[0], state.plant.q[1]])
-out = {
-    "mpc_solve_ms_median": float(np.median([r.solve_ms for r in mpc])),
-    "mpc_solve_ms_p99": float(np.percentile([r.solve_ms for r in mpc], 99)),
-    "mpc_tick_ms_median": float(np.median([r.total_ms for r in mpc])),
-    "mpc_tick_ms_p99": float(np.percentile([r.total_ms for r in mpc], 99)),
-    "wbc_solve_ms_median": float(np.median([r.solve_ms for r in wbc])),
-    "wbc_solve_ms_p99": float(np.percentile([r.solve_ms for r in wbc], 99)),
-    "wbc_tick_ms_median": float(np.median([r.total_ms for r in wbc])),
-    "wbc_tick_ms_p99": float(np.percentile([r.total_ms for r in wbc], 99)),
-    "realtime_factor": sim_time / wall,
-    "qp_failures": float(state.controller.qp_failures),
-    "fell": float(state.fall is not None),
-    "final_x_m": float(q[0]),
-    "proxsuite_build": proxsuite_build(),
-}
+#: runs inside the subprocess: argv = bench folder, seconds, speed, terrain; prints one
+#: JSON line with :func:`bench/controller.py:closed_loop_figures` (one measuring code)
+_MEASURE = r"""
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from controller import closed_loop_figures
+out = closed_loop_figures(float(sys.argv[2]), float(sys.argv[3]), sys.argv[4])
 print("RESULT " + json.dumps(out))
 """
 
@@ -75,7 +46,8 @@ def measure(tree: str, seconds: float, speed: float, terrain: str, env: dict) ->
     """One closed-loop run on ``tree`` in a fresh subprocess; its figures."""
     tree = os.path.abspath(tree)
     e = dict(env, PYTHONPATH=tree + os.pathsep + env.get("PYTHONPATH", ""))
-    proc = subprocess.run([sys.executable, "-c", _MEASURE, str(seconds), str(speed), terrain],
+    proc = subprocess.run([sys.executable, "-c", _MEASURE, BENCH_DIR, str(seconds), str(speed),
+                           terrain],
                           cwd=tree, env=e, capture_output=True, text=True)
     if proc.returncode != 0:
         raise SystemExit(f"run on {tree} failed:\n{proc.stderr[-3000:]}")

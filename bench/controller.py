@@ -31,33 +31,27 @@ import numpy as np
 from _report import emit
 
 
-def main(argv=None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=10.0, help="simulated time [s]")
-    ap.add_argument("--speed", type=float, default=0.2, help="commanded speed [m/s]")
-    ap.add_argument("--terrain", default="dry_sand", help="plant terrain (models/terrain)")
-    ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
-    args = ap.parse_args(argv)
-
+def closed_loop_figures(seconds: float, speed: float, terrain: str) -> dict:
+    """Solver times and real-time factor of one closed-loop run of ``sim/sand_walk.yaml``
+    (run from the repository root). Also used by ``bench/compare_revisions.py``, whose
+    subprocesses import this file so that old and new trees are measured by one code."""
     from granular_mpc.control.solvers.proxqp import proxsuite_build
     from granular_mpc.runner import build_simulation, closed_loop
     from granular_mpc.scenario import load_scenario
 
     scenario = load_scenario("sim/sand_walk.yaml", [
-        f"terrain={args.terrain}", f"command.speed={args.speed}",
-        f"sim.duration={args.seconds}"])
+        f"terrain={terrain}", f"command.speed={speed}", f"sim.duration={seconds}"])
     sim = build_simulation(scenario)
     state = sim.new_state()
-    rows = 0
     t0 = time.perf_counter()
     for _ in closed_loop(sim, state):
-        rows += 1
+        pass
     wall = time.perf_counter() - t0
     records = state.controller.records
     mpc = [r for r in records if r.kind == "mpc"]
     wbc = [r for r in records if r.kind == "wbc"]
     sim_time = state.plant.t
-    figures = {
+    return {
         "mpc_solve_ms_median": float(np.median([r.solve_ms for r in mpc])),
         "mpc_solve_ms_p99": float(np.percentile([r.solve_ms for r in mpc], 99)),
         "mpc_tick_ms_median": float(np.median([r.total_ms for r in mpc])),
@@ -71,8 +65,20 @@ def main(argv=None) -> dict:
         "realtime_factor": sim_time / wall,
         "qp_failures": float(state.controller.qp_failures),
         "fell": float(state.fall is not None),
+        "final_x_m": float(state.plant.q[0]),
         "proxsuite_build": proxsuite_build(),
     }
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=10.0, help="simulated time [s]")
+    ap.add_argument("--speed", type=float, default=0.2, help="commanded speed [m/s]")
+    ap.add_argument("--terrain", default="dry_sand", help="plant terrain (models/terrain)")
+    ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    args = ap.parse_args(argv)
+
+    figures = closed_loop_figures(args.seconds, args.speed, args.terrain)
     emit(figures, args.json, {"_median": "ms", "_p99": "ms", "_hz": "Hz"})
     return figures
 
