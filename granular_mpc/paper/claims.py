@@ -79,8 +79,8 @@ class ClaimBuilder:
         self.p_track = (f"paper protocol exactly: track (rigid, sand from x = {x_edge:g} m), "
                         f"rigid-ground controller, no double support (sim/paper_protocol.yaml){q}")
         self.p_model = (f"{model.n_stances} sand stances synthesized with the sweep's sand "
-                        f"scenario, replayed by the granular and the rigid-ground model "
-                        f"(validate){q}")
+                        f"scenario, replayed by the 3-D granular, the rigid-ground and the "
+                        f"decoupled planar model (validate){q}")
 
     # ------------------------------------------------------------------ helpers
     def summary(self, terrain: str, speed: float) -> dict:
