@@ -7,7 +7,7 @@
     granular-mpc validate DATA_DIR [--model granular|rigid|planar] [--effect NAME …] --out DIR
     granular-mpc diagnose DATA_DIR --out DIR
     granular-mpc import SOURCE --mapping MAP.yaml --out DATA_DIR
-    granular-mpc paper --out DIR [--quick] [--workers N]
+    granular-mpc paper --out DIR [--quick] [--workers N] [--overwrite]
     granular-mpc bench [--json DIR]
 
 Bad input (malformed YAML, a key given twice, unknown key, wrong type, a ``--set`` of a
@@ -529,13 +529,14 @@ def paper(
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder for paper_comparison.md, its figures and the runs.")],
     quick: Annotated[bool, typer.Option("--quick", help="Fewer, shorter runs (every row still filled; for tests).")] = False,
     workers: WorkersOpt = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace the runs of an earlier comparison in DIR.")] = False,
     debug: DebugOpt = False,
 ) -> None:
     """Regenerate the comparison with the paper: DIR/paper_comparison.md (docs/paper.md)."""
     from .paper import paper_comparison
 
     with _errors(debug):
-        res = paper_comparison(out, quick=quick, workers=workers)
+        res = paper_comparison(out, quick=quick, workers=workers, overwrite=overwrite)
         print(f"{len(res.rows)} claims compared in {res.wall_time_s:.0f} s")
         print(f"wrote {res.table}")
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from granular_mpc.analysis import contact_segments, plateau_by_stance, rolling_from_log
+from granular_mpc.exceptions import OutputError
 from granular_mpc.paper import paper_comparison
 from granular_mpc.paper.measures import MIN_STANCE_S
 from granular_mpc.runlog import read_log
@@ -107,3 +108,10 @@ def test_track_row_from_the_exact_protocol_run(comparison):
         assert 0.0 < row.value < s["fall_time_s"]
     else:
         assert row.value == pytest.approx(s["sim_time_s"])
+
+
+def test_a_second_comparison_into_the_same_folder_needs_overwrite(comparison):
+    table = comparison.table.read_text()
+    with pytest.raises(OutputError, match="overwrite"):
+        paper_comparison(comparison.out_dir, quick=True, workers=1)
+    assert comparison.table.read_text() == table          # nothing was replaced

@@ -47,7 +47,7 @@ class PaperComparison:
 
 
 def paper_comparison(out_dir: str | Path, *, quick: bool = False,
-                     workers: int | None = None) -> PaperComparison:
+                     workers: int | None = None, overwrite: bool = False) -> PaperComparison:
     """Run what the paper comparison needs and write ``out_dir/paper_comparison.md``.
 
     Runs (``granular_mpc.paper.runs``): the speed sweep ``sim/paper_sweep.yaml`` (rigid-
@@ -59,8 +59,9 @@ def paper_comparison(out_dir: str | Path, *, quick: bool = False,
     ``figures/dtheta_r.png``.
 
     Args:
-        out_dir: the comparison folder (created if absent; earlier results in it are
-            replaced).
+        out_dir: the comparison folder (created if absent).
+        overwrite: replace the runs of an earlier comparison in ``out_dir`` (without it,
+            an earlier comparison there is an OutputError, nothing is replaced).
         quick: shortened runs (about a minute; for tests): every row is still produced,
             the protocol column says ``quick``.
         workers: processes for the runs and replays (default: all cores).
@@ -74,7 +75,7 @@ def paper_comparison(out_dir: str | Path, *, quick: bool = False,
     """
     t0 = time.perf_counter()
     out = make_output_folder(out_dir)
-    runs = run_all(out, RunPlan.make(quick), workers=workers)
+    runs = run_all(out, RunPlan.make(quick), workers=workers, overwrite=overwrite)
     return tabulate(runs, workers=workers, t0=t0)
 
 

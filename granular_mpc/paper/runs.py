@@ -147,13 +147,16 @@ def dataset_scenario(plan: RunPlan):
 
 
 def run_all(out_dir: Path, plan: RunPlan, *, workers: int | None = None,
-            progress: bool = False) -> PaperRuns:
-    """Run the sweep, the track runs and the data set into ``out_dir``."""
+            progress: bool = False, overwrite: bool = False) -> PaperRuns:
+    """Run the sweep, the track runs and the data set into ``out_dir`` (``overwrite``:
+    replace those of an earlier comparison there)."""
     runs = PaperRuns(Path(out_dir), plan)
-    run_sweep(sweep_tasks(plan), runs.sweep_dir, workers=workers, progress=progress)
-    run_sweep(track_tasks(plan), runs.track_dir, workers=workers, progress=progress)
+    run_sweep(sweep_tasks(plan), runs.sweep_dir, workers=workers, progress=progress,
+              overwrite=overwrite)
+    run_sweep(track_tasks(plan), runs.track_dir, workers=workers, progress=progress,
+              overwrite=overwrite)
     synthesize(dataset_scenario(plan), runs.dataset_dir, speeds=list(plan.synth_speeds),
-               steps=plan.synth_steps, workers=workers, seed=0,
+               steps=plan.synth_steps, workers=workers, seed=0, overwrite=overwrite,
                description="paper comparison: rigid-ground controller + 39 ms load "
                            "transfer on dry sand (sim/paper_sweep.yaml)")
     return runs
