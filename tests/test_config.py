@@ -181,3 +181,19 @@ def test_robot_file_with_unknown_key(tmp_path):
     err = _raises(load_robot, str(tmp_path / "robot.yaml"))
     assert err.key == "joint_dampnig"
     assert "did you mean 'joint_damping'" in str(err)
+
+
+def test_a_terrain_file_with_a_key_given_twice_names_the_key_and_line(tmp_path, monkeypatch):
+    monkeypatch.setenv("GRANULAR_MPC_MODELS", str(tmp_path))
+    (tmp_path / "terrain").mkdir()
+    (tmp_path / "terrain" / "twice.yaml").write_text(
+        "name: twice\nkind: granular\nzeta: 1.36\nzeta: 5.0\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"duplicate key 'zeta'.*line 4"):
+        load_terrain("twice")
+
+
+def test_a_models_folder_that_does_not_exist_is_warned_about_by_name(tmp_path, monkeypatch):
+    missing = tmp_path / "no-such-folder"
+    monkeypatch.setenv("GRANULAR_MPC_MODELS", str(missing))
+    with pytest.warns(UserWarning, match="no-such-folder"):
+        models_dirs()

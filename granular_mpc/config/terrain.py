@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal, Mapping, Optional, Union
 
-import yaml
 from pydantic import Field, field_validator, model_validator
 
 from ..exceptions import ConfigError
@@ -14,6 +13,7 @@ from ..paths import resolve_file
 from ..rft_coefficients import GENERIC
 from .base import FiniteFloat, NonNegFloat, PositiveFloat, StrictModel
 from .effects import EffectSpec
+from .yaml_io import load_yaml
 
 
 class RFTCoefficients(StrictModel):
@@ -101,17 +101,9 @@ def _segment_terrain_mapping(ref: Any, index_key: str) -> Any:
 
 
 def _read_terrain_file(name: str, key: str) -> dict:
-    """The mapping of terrain file ``name`` (not validated).
-
-    (The loader's ``load_yaml`` cannot be used here: the loader imports this module.)"""
-    path = resolve_file("terrain", name, key=key)
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f"cannot read terrain file {path}: {exc}", key=key, value=name) from None
-    if not isinstance(data, dict):
-        raise ConfigError(f"terrain file {path} must hold a mapping", key=key, value=name)
-    return data
+    """The mapping of terrain file ``name`` (not validated; duplicate keys, non-UTF-8 text
+    and malformed YAML are ConfigErrors naming the file)."""
+    return load_yaml(resolve_file("terrain", name, key=key))
 
 
 class TrackSegment(StrictModel):
