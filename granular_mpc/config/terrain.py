@@ -58,7 +58,9 @@ class GranularTerrainConfig(_TerrainBase):
                              description="Solidified-zone (granular friction) angle φ_s [deg], in (0, 90).")
     density: PositiveFloat = Field(1660.0, description="Bulk density ρ [kg/m³].")
     layer_depth: PositiveFloat = Field(0.12, description="Thickness of the layer over rigid ground [m].")
-    bulldozing_length: PositiveFloat = Field(0.01, description="Bulldozing saturation length λ [m] (calibrated).")
+    bulldozing_length: PositiveFloat = Field(
+        0.01, description="Bulldozing saturation length λ [m]: an assumed default (the paper "
+                          "gives no value; not identifiable from walking data by the workbench).")
     sole_shear_alpha: NonNegFloat = Field(0.136, description="Generic in-plane shear stress per depth of the sole [N/cm³] (α_x(0,0)).")
     added_mass_scale: NonNegFloat = Field(1.0, description="Scale of the solidified-zone added mass [-].")
     contact_stiffness: PositiveFloat = Field(2.0e5, description="Elastic regularisation stiffness per contact patch [N/m].")
