@@ -12,7 +12,6 @@ import pytest
 from granular_mpc.analysis import contact_segments, plateau_by_stance, rolling_from_log
 from granular_mpc.exceptions import OutputError
 from granular_mpc.paper import paper_comparison
-from granular_mpc.paper.measures import MIN_STANCE_S
 from granular_mpc.runlog import read_log
 
 KEYS = ("cot_sand", "cot_rigid", "cot_ratio_02", "cot_ratio_range", "u_shape_sand",
@@ -73,8 +72,8 @@ def test_plateau_row_recomputed_from_the_log(comparison):
     s = json.loads((run / "summary.json").read_text())
     log = read_log(run)
     seg = contact_segments(log)
-    seg = seg[(seg["t_start"] >= s["window_s"][0])
-              & (seg["duration_s"] >= MIN_STANCE_S)].reset_index(drop=True)
+    seg = seg[seg["t_start"] >= s["window_s"][0]].reset_index(drop=True)
+    assert (seg["duration_s"] > 0.1).all()      # no landing bounce left as a "stance"
     plat = plateau_by_stance(rolling_from_log(log, segments=seg))
     onsets = plat.loc[plat["n_plateaus"] > 0, "onset_pct"]
     expected = float(onsets.median()) if len(onsets) else math.nan

@@ -37,18 +37,12 @@ def run_weight(summary: dict) -> float:
     return float(summary["energy_J"]) / (float(summary["cot"]) * float(summary["distance_m"]))
 
 
-#: contacts shorter than this are touchdown bounces, not stances [s]. On rigid ground a
-#: landing foot touches for ≈ 4 ms, leaves the ground for ≈ 10 ms, then stands (measured in
-#: the sweep's rigid runs; longer than the one-sample debounce of ``analysis.stances``).
-MIN_STANCE_S = 0.05
-
-
 def steady_segments(log: pd.DataFrame, t_start: float) -> pd.DataFrame:
-    """Complete contact stances (touchdown to lift-off) touching down at or after
-    ``t_start``, bounces (< :data:`MIN_STANCE_S`) dropped."""
+    """Complete contact stances (touchdown to lift-off, :func:`contact_segments`, whose
+    20 ms debounce merges the landing bounce on rigid ground into its stance) touching down
+    at or after ``t_start``."""
     seg = contact_segments(log)
-    keep = (seg["t_start"] >= t_start) & (seg["duration_s"] >= MIN_STANCE_S)
-    return seg[keep].reset_index(drop=True)
+    return seg[seg["t_start"] >= t_start].reset_index(drop=True)
 
 
 @dataclass(frozen=True)
@@ -184,6 +178,6 @@ def first_touchdown_on(run_dir: str | Path, x_edge: float) -> float:
     return min(times) if times else float("nan")
 
 
-__all__ = ["PHASE", "READING", "MIN_STANCE_S", "read_summary", "run_weight", "steady_segments", "StanceCurves",
+__all__ = ["PHASE", "READING", "read_summary", "run_weight", "steady_segments", "StanceCurves",
            "stance_curves", "opening_phase", "late_share", "SpeedShape", "speed_shape",
            "first_touchdown_on"]

@@ -40,8 +40,8 @@ def write_comparison(out_dir: Path, rows: Sequence[ClaimRow], figures: Sequence[
         "time. One claim per row; every \"ours\" is computed from the run or report named in "
         "the last column. CoT: default reading `abs_per_joint` (Σ_i |τ_i q̇_i|), the others "
         "in the cell (docs/analysis.md §1). Stances: touchdown to lift-off from the plant's "
-        "contact state, steady walking only (the summary's averaging window), contacts shorter "
-        "than 50 ms (touchdown bounces on rigid ground) dropped; runs that fell are left out "
+        "contact state (a landing bounce on rigid ground belongs to its stance), steady "
+        "walking only (the summary's averaging window); runs that fell are left out "
         "of the speed rows (the row says which). "
         "Protocols and reasons: docs/paper.md.",
         "",
