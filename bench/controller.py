@@ -1,6 +1,12 @@
 """Controller benchmark: solve times and real-time factor of the closed loop on sand.
 
     python bench/controller.py [--seconds 10] [--speed 0.2] [--terrain dry_sand] [--json PATH]
+    python bench/controller.py --plant both --repeat 3     # reference vs compiled plant
+
+``--plant`` chooses the plant of the closed loop (``sim.plant``: ``compiled``, the
+default, or ``reference``); ``both`` runs the two alternately in this process ``--repeat``
+times and prints each figure's median with the plant as a suffix (``realtime_factor_reference``,
+``realtime_factor_compiled`` …), plus the machine load before and after.
 
 Prints one ``name: value unit`` line per figure. The closed loop is the runner's own
 (:func:`granular_mpc.runner.closed_loop`: plant at 2 kHz, WBC at 500 Hz, MPC at 40 Hz, a
@@ -25,13 +31,14 @@ Two revisions side by side: ``bench/compare_revisions.py``.
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
 from _report import emit
 
 
-def closed_loop_figures(seconds: float, speed: float, terrain: str) -> dict:
+def closed_loop_figures(seconds: float, speed: float, terrain: str, plant: str | None = None) -> dict:
     """Solver times and real-time factor of one closed-loop run of ``sim/sand_walk.yaml``
     (run from the repository root). Also used by ``bench/compare_revisions.py``, whose
     subprocesses import this file so that old and new trees are measured by one code."""
@@ -39,8 +46,10 @@ def closed_loop_figures(seconds: float, speed: float, terrain: str) -> dict:
     from granular_mpc.runner import build_simulation, closed_loop
     from granular_mpc.scenario import load_scenario
 
-    scenario = load_scenario("sim/sand_walk.yaml", [
-        f"terrain={terrain}", f"command.speed={speed}", f"sim.duration={seconds}"])
+    overrides = [f"terrain={terrain}", f"command.speed={speed}", f"sim.duration={seconds}"]
+    if plant is not None:
+        overrides.append(f"sim.plant={plant}")
+    scenario = load_scenario("sim/sand_walk.yaml", overrides)
     sim = build_simulation(scenario)
     state = sim.new_state()
     t0 = time.perf_counter()
@@ -76,9 +85,27 @@ def main(argv=None) -> dict:
     ap.add_argument("--speed", type=float, default=0.2, help="commanded speed [m/s]")
     ap.add_argument("--terrain", default="dry_sand", help="plant terrain (models/terrain)")
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    ap.add_argument("--plant", choices=("compiled", "reference", "both"), default=None,
+                    help="plant of the closed loop (default: sim.plant's default, compiled)")
+    ap.add_argument("--repeat", type=int, default=1, help="runs per plant with --plant both")
     args = ap.parse_args(argv)
 
-    figures = closed_loop_figures(args.seconds, args.speed, args.terrain)
+    if args.plant != "both":
+        figures = closed_loop_figures(args.seconds, args.speed, args.terrain, args.plant)
+    else:
+        figures = {"load_before": os.getloadavg()[0]}
+        runs: dict = {"reference": [], "compiled": []}
+        for _ in range(max(1, args.repeat)):
+            for plant in runs:
+                runs[plant].append(closed_loop_figures(args.seconds, args.speed, args.terrain,
+                                                       plant))
+        for plant, rows in runs.items():
+            for key, value in rows[0].items():
+                if isinstance(value, float):
+                    figures[f"{key}_{plant}"] = float(np.median([r[key] for r in rows]))
+                else:
+                    figures[f"{key}_{plant}"] = value
+        figures["load_after"] = os.getloadavg()[0]
     emit(figures, args.json, {"_median": "ms", "_p99": "ms", "_hz": "Hz"})
     return figures
 

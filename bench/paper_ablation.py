@@ -297,7 +297,10 @@ def switch_plant(sim, pd, sand_terrain):
 # ----------------------------------------------------------------------------- one run
 def run_case(case: Case, speed: float, seconds: float) -> tuple[CaseResult, pd.DataFrame]:
     """Run ``case`` at ``speed`` [m/s] for ``seconds`` [s]; the result and the log rows."""
-    overrides = [f"command.speed={speed}", f"sim.duration={seconds}", "output.plots=false"]
+    # the reference plant: switch_plant rebuilds it with another terrain and reads its
+    # Pinocchio data (the compiled plant has neither)
+    overrides = [f"command.speed={speed}", f"sim.duration={seconds}", "output.plots=false",
+                 "sim.plant=reference"]
     overrides += list(case.overrides)
     sand_terrain = None
     if case.switch_to_sand_at is not None:

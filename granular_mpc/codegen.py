@@ -14,14 +14,22 @@ too). ``GRANULAR_MPC_JIT=0`` with ``fallback=True``: CasADi's virtual machine. C
 flags ``-O3 -fPIC -shared`` (``-fopenmp`` for code with OpenMP maps). Without a compiler,
 :func:`compile_functions` raises :class:`~granular_mpc.exceptions.ModelError` unless
 ``fallback=True``, which returns the functions for CasADi's virtual machine (slow).
+
+Building prints one line on stderr (``compiling <prefix> … (once; cached in <folder>)``).
+Processes that need the same library at once (sweep workers, parallel test runs) are
+safe: the build holds an exclusive lock on ``<library>.lock`` (``fcntl``), so one
+process compiles and the others wait and load its result; the library appears
+atomically (``os.replace``), so no process ever loads half a file.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 from pathlib import Path
 from typing import Sequence
@@ -91,20 +99,47 @@ def compile_functions(prefix: str, functions: Sequence[ca.Function], *,
         key = hashlib.sha256(src + ca.__version__.encode() + " ".join(flags).encode())
         lib = cache / f"{prefix}_{key.hexdigest()[:20]}.so"
         if not lib.is_file():
-            out = Path(tmp, "gen.so")
-            try:
-                subprocess.run([cc, *flags, str(src_path), "-o", str(out), "-lm"], check=True,
-                               capture_output=True, timeout=1800)
-            except (OSError, subprocess.SubprocessError) as exc:
-                if fallback:
-                    return {f.name(): f for f in functions}
-                detail = getattr(exc, "stderr", b"") or b""
-                raise ModelError(f"compiling the plant failed: {exc} "
-                                 f"{detail.decode(errors='replace')[:400]}") from exc
-            partial = lib.with_suffix(f".{os.getpid()}.tmp")
-            shutil.copyfile(out, partial)
-            os.replace(partial, lib)        # atomic: parallel builds never see half a file
+            with _build_lock(lib):
+                if not lib.is_file():       # another process may have built it meanwhile
+                    try:
+                        _build(cc, flags, src_path, lib, prefix)
+                    except (OSError, subprocess.SubprocessError) as exc:
+                        if fallback:
+                            return {f.name(): f for f in functions}
+                        detail = getattr(exc, "stderr", b"") or b""
+                        raise ModelError(f"compiling the plant failed: {exc} "
+                                         f"{detail.decode(errors='replace')[:400]}") from exc
     return {f.name(): ca.external(f.name(), str(lib)) for f in functions}
+
+
+def _build(cc: str, flags: list[str], src_path: Path, lib: Path, prefix: str) -> None:
+    """Compile ``src_path`` to ``lib`` (atomically), announcing it in one stderr line."""
+    size_kb = src_path.stat().st_size / 1024
+    print(f"granular_mpc: compiling {prefix} ({size_kb:.0f} kB of C, once; cached in "
+          f"{lib.parent}) …", file=sys.stderr, flush=True)
+    out = src_path.with_suffix(".so")
+    subprocess.run([cc, *flags, str(src_path), "-o", str(out), "-lm"], check=True,
+                   capture_output=True, timeout=1800)
+    partial = lib.with_suffix(f".{os.getpid()}.tmp")
+    shutil.copyfile(out, partial)
+    os.replace(partial, lib)                # atomic: parallel builds never see half a file
+
+
+@contextlib.contextmanager
+def _build_lock(lib: Path):
+    """Exclusive lock on ``<lib>.lock`` while one process builds ``lib`` (others wait);
+    a no-op where ``fcntl`` is missing (the atomic rename still keeps loads safe)."""
+    try:
+        import fcntl
+    except ImportError:                     # not POSIX: concurrent builds just duplicate work
+        yield
+        return
+    with open(lib.with_suffix(".lock"), "a+") as fh:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
 
 
 __all__ = ["CFLAGS", "cache_dir", "compiler", "compile_functions"]

@@ -293,3 +293,49 @@ def test_actuator_model_refused(biped, rigid):
     sim = SimConfig.model_validate({"actuators": {"friction": {"enabled": True}}})
     with pytest.raises(ConfigError, match="actuators"):
         CompiledPlant(Plant(biped, rigid, sim))
+
+
+def test_per_foot_theta_and_joint_parameters_match_reference(biped):
+    """The replay's compiled model (each foot its own terrain θ, joint friction's parameters
+    in θ; :meth:`ReplayModel.compiled_plant`) equals the reference plant with the same
+    per-foot surfaces and the joint effect as a hook, over 30 steps in contact; the
+    neutral joint parameters leave the plant without friction."""
+    from granular_mpc.effects import effect_info, joint_torque_function
+    from granular_mpc.validation.replay import build_replay_model, model_terrain
+
+    rm = build_replay_model(biped, model_terrain("dry_sand"), sample_rate_hz=200.0,
+                            terrain_effects=["cohesion"], plant="compiled")
+    fast, choice = rm.compiled_plant()
+    assert choice.resolved == "compiled" and fast is not None
+    c = fast.compiled
+    assert c.layout.per_foot and "left:zeta" in c.theta_names
+    assert "joint_friction.coulomb" in c.theta_names
+    info = effect_info("joint_friction")
+    p = info.resolve_params({"viscous": 0.08, "coulomb": 0.4})
+    plant = Plant(biped, rm.terrain, rm.sim,
+                  joint_effects=(joint_torque_function([(info, p)]),))
+    rng = np.random.default_rng(31)
+    d, q_hold = _contact_state(plant, rng, depth_mm=(3.0, 6.0), settle_steps=0, v_sigma=0.02,
+                               v_down=0.1, tilt=0.003)
+    surfaces = (0.0007, -0.0004)             # each foot its own free surface [m]
+    i_h = rm.terrain.param_names.index("surface_height")
+    theta = c.theta.copy()
+    for i, h in enumerate(surfaces):
+        d.contact.feet[i].params[i_h] = h
+        theta[c.layout.terrain_theta(i).start + i_h] = h
+    names = list(c.theta_names)
+    for k in info.params:
+        theta[names.index(f"joint_friction.{k}")] = p[k]
+    assert c.layout.joint_theta.start == 2 * len(rm.terrain.param_names)
+    s = c.state_from_data(d)
+    s = c.step(s, n_steps=30, q_ref=q_hold, kp=KP, kd=KD, theta=theta)
+    for _ in range(30):
+        plant.step(d, KP * (q_hold - d.q[biped.idx_q]) - KD * d.v[biped.idx_v])
+        assert d.foot_in_contact(0) and d.foot_in_contact(1)
+    _assert_same(c, s, d, tol=1e-8)
+    # the same steps with the default (neutral) θ differ: friction and surfaces matter
+    s0 = c.step(c.state_from_data(_contact_state(plant, np.random.default_rng(31),
+                                                 depth_mm=(3.0, 6.0), settle_steps=0,
+                                                 v_sigma=0.02, v_down=0.1, tilt=0.003)[0]),
+                n_steps=30, q_ref=q_hold, kp=KP, kd=KD)
+    assert np.abs(s0.v - s.v).max() > 1e-6

@@ -7,7 +7,8 @@
 * :mod:`.rigid_body_sx`, :mod:`.step_sx`, :mod:`.compiled` — the whole plant step as one
   compiled CasADi function (:class:`CompiledPlant`), :mod:`.fast_plant` — the
   :class:`Plant` interface on it, :mod:`.batch` — many robots per call
-  (:class:`BatchPlant`).
+  (:class:`BatchPlant`), :mod:`.select` — which of the two steps a run or a replay
+  (``sim.plant``, ``$GRANULAR_MPC_PLANT``; docs/speed.md).
 """
 from . import planar
 from .actuators import ActuatorModel

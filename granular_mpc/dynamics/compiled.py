@@ -5,6 +5,8 @@
     s = fast.initial_state(q0)
     s = fast.step(s, tau_a, n_steps=20)            # 20 steps of dt with τ_a held
     s = fast.step(s, n_steps=20, q_ref=q_hold, kp=150.0, kd=3.0)   # joint PD in the loop
+    replay = CompiledPlant(plant, per_foot_theta=True,           # each foot its own θ,
+                           joint_params=(effect_info("joint_friction"),))  # effect params in θ
 
 One step is the reference :meth:`Plant.step` — Verlet (or semi-implicit Euler) on the
 configuration manifold, the articulated-body algorithm, both feet's terrain law with the
@@ -134,23 +136,42 @@ class CompiledPlant:
     Args:
         plant: the reference plant (robot, terrain, sim settings, joint effects).
         chunk: steps per compiled call (``mapaccum``) for multi-step calls.
+        per_foot_theta: each foot reads its own terrain θ (``θ`` is then the terrain's
+            values twice, left foot first; :class:`~.step_sx.StepLayout`).
+        joint_params: registered joint effects (``EffectInfo``, kind ``joint``) compiled
+            with their parameters in ``θ`` (after the terrain's), at their neutral values
+            (off) by default — one compiled model serves every parameter setting.
 
     Attributes:
-        plant, layout, dt, theta (terrain parameter values, ``terrain.param_names`` order),
+        plant, layout, dt, theta (default parameter vector: terrain values in
+        ``terrain.param_names`` order, then the joint-effect parameters), theta_names,
         functions: name → compiled CasADi function (``plant_step``, ``plant_start``,
         ``plant_chunk``).
     """
 
-    def __init__(self, plant: Plant, *, chunk: int = DEFAULT_CHUNK) -> None:
+    def __init__(self, plant: Plant, *, chunk: int = DEFAULT_CHUNK, per_foot_theta: bool = False,
+                 joint_params: tuple = ()) -> None:
         if chunk < 1:
             raise ConfigError("chunk must be ≥ 1", key="chunk", value=chunk)
-        builder = StepBuilder(plant)
+        builder = StepBuilder(plant, per_foot_theta=per_foot_theta, joint_params=joint_params)
         self.plant = plant
         self.layout = builder.layout
+        #: registered joint effects compiled with their parameters in θ
+        self.joint_params = builder.joint_params
         self.dt = float(plant.sim.dt)
         self.chunk = int(chunk)
         self.verlet = plant.sim.integrator == "verlet"
-        self.theta = np.array(plant.terrain.param_values, dtype=float)
+        terrain_names = tuple(plant.terrain.param_names)
+        terrain_values = list(np.asarray(plant.terrain.param_values, dtype=float))
+        names = ([f"{side}:{n}" for side in ("left", "right") for n in terrain_names]
+                 if per_foot_theta else list(terrain_names))
+        values = terrain_values * (2 if per_foot_theta else 1)
+        for info in builder.joint_params:
+            neutral = info.neutral_params()
+            names += [f"{info.name}.{k}" for k in info.params]
+            values += [float(neutral[k]) for k in info.params]
+        self.theta_names = tuple(names)
+        self.theta = np.array(values, dtype=float)
         step, start = builder.step_function(), builder.start_function()
         #: the symbolic (uncompiled) functions, for other wrappers
         self.symbolic = {"plant_step": step, "plant_start": start,

@@ -16,7 +16,13 @@ synthesiser and the replay read from ``Plant`` / ``PlantData`` (``new_data``, ``
 evaluated in Python where the reference evaluates it — at the drifted configuration and
 the half-step velocity of the Verlet step (which needs ``M⁻¹Δτ`` from Pinocchio when the
 torque changed), at the start state for semi-implicit Euler — so it matches too.
-Not offered: the per-patch ``contact`` data, ``pin`` and ``fext`` of ``PlantData``.
+``d.contact.feet[i]`` offers foot ``i``'s per-patch state (``state``, (n, S), the layout
+of :mod:`granular_mpc.terrain.contact`) and terrain parameters (``params``) as writable views
+into the compiled state, so a replay sets a foot's initial contact state the same way on
+both plants (the two feet share one ``params`` unless the compiled plant was built with
+``per_foot_theta``). ``pin`` is a Pinocchio data of the robot for the caller's kinematics
+(not updated by :meth:`FastPlant.step`). Not offered: ``fext`` and the actuator-model
+read-outs of ``PlantData``.
 """
 
 from __future__ import annotations
@@ -112,6 +118,33 @@ class FastPlant:
         return float(ke), float(pe)
 
 
+class FootContactView:
+    """Foot ``i``'s part of a compiled state, shaped like ``ContactData.feet[i]``.
+
+    Attributes:
+        state: per-patch terrain state, (n patches, S), a writable view of the state.
+        params: the terrain θ this foot's law reads (``terrain.param_names`` order), a
+            writable view of the held parameters.
+    """
+
+    def __init__(self, state: np.ndarray, params: np.ndarray) -> None:
+        self.state = state
+        self.params = params
+
+
+class ContactView:
+    """Both feet's :class:`FootContactView` (``feet[0]`` left, ``feet[1]`` right)."""
+
+    def __init__(self, data) -> None:
+        L = data.layout
+        states = data.x[L.contact].reshape(2, L.n_patches, L.patch_state)
+        self.feet = tuple(FootContactView(states[i], data.theta[L.terrain_theta(i)])
+                          for i in (0, 1))
+
+    def in_contact(self, foot: int) -> bool:
+        return bool(self.feet[foot].state[:, 6].max() > 0.5)
+
+
 class FastPlantData:
     """Changing part of a :class:`FastPlant` run, read like ``PlantData``.
 
@@ -127,8 +160,15 @@ class FastPlantData:
         #: callable (q, v) -> that 6-vector
         self.base_wrench = None
         self.pin_data = plant.biped.create_data()
+        #: per-foot contact state and terrain θ, writable views (see the module docstring)
+        self.contact = ContactView(data)
         self._point = np.zeros((2, 3))
         self._idx_v = plant.biped.idx_v
+
+    @property
+    def pin(self):
+        """A Pinocchio data of the robot (for the caller's kinematics; not stepped)."""
+        return self.pin_data
 
     @property
     def t(self) -> float:
@@ -186,4 +226,4 @@ class FastPlantData:
         return aux_foot(self.data.aux, foot, "diag").copy()
 
 
-__all__ = ["FastPlant", "FastPlantData"]
+__all__ = ["FastPlant", "FastPlantData", "ContactView", "FootContactView"]

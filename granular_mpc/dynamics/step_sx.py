@@ -64,6 +64,9 @@ class StepLayout:
     [m/s, rad/s], last acceleration, the torque held during the last step [N·m], and the
     terrain's per-patch state (:mod:`granular_mpc.terrain.contact`, left foot first).
     ``u = [τ_ff | q_ref | k_p | k_d]`` (na each) [N·m, rad, N·m/rad, N·m·s/rad].
+    The parameter input ``θ`` (``n_theta``) is ``[terrain θ (n_terrain) | joint-effect
+    parameters]`` — with ``per_foot`` ``[terrain θ of the left foot | of the right foot |
+    joint-effect parameters]`` (e.g. a replay's per-foot free surface).
     """
 
     nq: int
@@ -72,6 +75,19 @@ class StepLayout:
     n_patches: int
     patch_state: int
     n_theta: int
+    per_foot: bool = False
+    n_terrain: int = -1          # terrain θ size (−1: all of ``n_theta``)
+
+    def terrain_theta(self, foot: int) -> slice:
+        """The slice of ``θ`` that foot ``foot``'s terrain law reads."""
+        n = self.n_theta if self.n_terrain < 0 else self.n_terrain
+        k = foot if self.per_foot else 0
+        return slice(k * n, (k + 1) * n)
+
+    @property
+    def joint_theta(self) -> slice:
+        """The slice of ``θ`` holding the joint-effect parameters."""
+        return slice(self.terrain_theta(1).stop, self.n_theta)
 
     @property
     def nx(self) -> int:
@@ -108,6 +124,38 @@ def symbolic_contact(terrain) -> ca.Function:
     return terrain.contact.symbolic
 
 
+def trace_joint_effect_params(info, na: int) -> ca.Function:
+    """Trace a registered joint effect ``info.fn(q_a, dq_a, p)`` with its parameters
+    symbolic: ``joint_effect(q_a, dq_a, p) -> τ_a`` (``p`` in ``info.params`` order),
+    checked numerically at its default and neutral parameters.
+
+    Raises:
+        ConfigError: the effect cannot be traced with CasADi or gives other values.
+    """
+    names = list(info.params)
+    qa, va, ps = ca.SX.sym("q_a", na), ca.SX.sym("dq_a", na), ca.SX.sym("p", len(names))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FutureWarning)
+            out = ca.SX(info.fn(qa, va, {k: ps[i] for i, k in enumerate(names)}))
+        traced = ca.Function(f"joint_{info.name}", [qa, va, ps], [ca.reshape(out, na, 1)])
+        rng = np.random.default_rng(0)
+        qn, vn = rng.normal(size=na), rng.normal(size=na)
+        ok = True
+        for p in (info.resolve_params({}), info.neutral_params()):
+            pv = np.array([p[k] for k in names], dtype=float)
+            ok = ok and np.allclose(np.array(traced(qn, vn, pv)).ravel(),
+                                    np.asarray(info.fn(qn, vn, dict(p)), float),
+                                    rtol=1e-12, atol=1e-12)
+    except Exception as exc:  # noqa: BLE001 - any failure means "not traceable"
+        raise ConfigError(f"joint effect {info.name!r} cannot be compiled ({exc}); use the "
+                          "reference Plant", key="joint_effects") from exc
+    if not ok:
+        raise ConfigError(f"joint effect {info.name!r} traced with CasADi gives other values "
+                          "than on floats; use the reference Plant", key="joint_effects")
+    return traced
+
+
 def _trace_joint_effect(fn, na: int) -> ca.Function:
     """Trace a joint-effect hook ``(q_a, dq_a) -> τ_a`` with SX and check it numerically."""
     qa, va = ca.SX.sym("q_a", na), ca.SX.sym("dq_a", na)
@@ -135,9 +183,14 @@ class StepBuilder:
     Args:
         plant: a :class:`~granular_mpc.dynamics.plant.Plant` (its biped, terrain, sim
             settings and joint effects are read; it is not modified).
+        per_foot_theta: each foot's terrain law reads its own terrain θ (see
+            :class:`StepLayout`).
+        joint_params: registered joint effects (``EffectInfo``) compiled with their
+            parameters as inputs (appended to ``θ`` in ``info.params`` order), added after
+            the plant's own joint effects; their neutral values switch them off.
     """
 
-    def __init__(self, plant) -> None:
+    def __init__(self, plant, *, per_foot_theta: bool = False, joint_params: tuple = ()) -> None:
         biped, terrain = plant.biped, plant.terrain
         model = biped.model
         actuators = getattr(plant, "actuators", None)
@@ -149,8 +202,12 @@ class StepBuilder:
         self.tree = rb.tree_from_model(model)
         self.contact_fn = symbolic_contact(terrain)
         cm = terrain.contact
+        n_terrain = len(terrain.param_names)
+        self.joint_params = tuple(joint_params)
+        n_joint = sum(len(info.params) for info in self.joint_params)
         self.layout = StepLayout(model.nq, model.nv, len(biped.idx_v), cm.n_slices,
-                                 cm.state_size, len(terrain.param_names))
+                                 cm.state_size, (2 if per_foot_theta else 1) * n_terrain + n_joint,
+                                 bool(per_foot_theta), n_terrain)
         self.gravity = np.array(model.gravity.linear)
         self.iq, self.iv = list(map(int, biped.idx_q)), list(map(int, biped.idx_v))
         self.q_lo, self.q_hi = biped.position_limits
@@ -164,6 +221,8 @@ class StepBuilder:
         self.clear_offset = biped.config.foot.radius + 0.005
         self.joint_effects = [_trace_joint_effect(fn, self.layout.na)
                               for fn in plant.joint_effects]
+        self.joint_param_fns = [trace_joint_effect_params(info, self.layout.na)
+                                for info in self.joint_params]
         self.dt = float(plant.sim.dt)
         self.integrator = plant.sim.integrator
 
@@ -192,14 +251,15 @@ class StepBuilder:
         vel = rb.velocities(self.tree, pl, v)
         fext = [None] * len(self.tree)
         new_states, aux = [], []
-        clear = theta[self.i_surface] + self.clear_offset
         per_patch = 3 + 3 + S + len(DIAG_NAMES)
         for foot, (jid, R_f, p_f, dual) in enumerate(self.feet):
+            theta_f = theta[L.terrain_theta(foot)]
+            clear = theta_f[self.i_surface] + self.clear_offset
             st = states[foot * n * S:(foot + 1) * n * S]
             p, R, vW, wW = rb.frame_kinematics(pl, vel, jid, R_f, p_f)
             kin = ca.vertcat(p, ca.vec(R), vW, wW)
             assert kin.shape[0] == N_KIN
-            out = self.contact_fn(ca.vertcat(kin, st, self.dt, theta))
+            out = self.contact_fn(ca.vertcat(kin, st, self.dt, theta_f))
             in_contact = ca.mmax(ca.vertcat(*[st[k * S + 6] for k in range(n)])) > 0.5
             # a swing foot whose sole cannot reach the surface: zero force, state reset
             live = ca.if_else(ca.logic_and(p[2] > clear, ca.logic_not(in_contact)), 0.0, 1.0)
@@ -224,6 +284,10 @@ class StepBuilder:
         if damping > 0.0:
             terms.append(-damping * va)
         terms += [fn(qa, va) for fn in self.joint_effects]
+        k0 = L.joint_theta.start
+        for info, fn in zip(self.joint_params, self.joint_param_fns):
+            terms.append(fn(qa, va, theta[k0:k0 + len(info.params)]))
+            k0 += len(info.params)
         tau = [tau_full[i] for i in range(L.nv)]
         for term in terms:                     # in the reference's order of summation
             for k, i in enumerate(self.iv):
@@ -282,4 +346,4 @@ class StepBuilder:
 
 
 __all__ = ["AUX_FOOT", "AUX_NAMES", "AUX_PER_FOOT", "aux_foot", "StepLayout", "StepBuilder",
-           "symbolic_contact"]
+           "symbolic_contact", "trace_joint_effect_params"]

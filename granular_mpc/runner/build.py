@@ -10,11 +10,18 @@ Pushes (``pushes:``) put a constant world-frame force/torque on the trunk
 (``PlantData.base_wrench``) during ``[start, start + duration)``; a ``mid_stance`` push
 starts at the first planned mid-stance at or after ``time``. In ``mode: drop`` the trunk
 hangs on the guide rig (:class:`~granular_mpc.runner.rig.GuideRig`) instead.
+
+Plant. ``sim.plant`` chooses the plant that steps
+(:func:`granular_mpc.dynamics.select.select_plant`): the compiled one by default, the
+reference :class:`~granular_mpc.dynamics.Plant` when asked for or when the compiled one
+does not model the scenario (a ``track`` terrain, ``sim.actuators``); the fallback is
+printed as one line on stderr and :attr:`Simulation.plant_choice` records the choice.
 """
 
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -23,6 +30,7 @@ import numpy as np
 from ..config import ScenarioConfig, load_terrain
 from ..control.controller import WalkingController
 from ..dynamics import Plant
+from ..dynamics.select import PlantChoice, select_plant
 from ..exceptions import ConfigError
 from ..robot.kinematics import balanced_stance
 from ..robot.model import SIDES, Biped
@@ -69,6 +77,8 @@ class Simulation:
         control_every: plant steps per controller tick.
         log_every: plant steps per log row.
         n_steps: plant steps of the whole run.
+        plant_choice: the plant asked for (``sim.plant``) and the one stepping, with the
+            reason of a fallback.
     """
 
     scenario: ScenarioConfig
@@ -81,6 +91,7 @@ class Simulation:
     control_every: int
     log_every: int
     n_steps: int
+    plant_choice: PlantChoice = PlantChoice("reference", "reference")
 
     @property
     def plant_terrain(self):
@@ -162,7 +173,7 @@ def build_simulation(scenario: ScenarioConfig, *, biped: Biped | None = None,
     else:
         cfg = scenario.controller_terrain or load_terrain(ct_name)
         ctrl_terrain = build_terrain(cfg, scenario.robot)
-    plant = Plant(biped, plant_terrain, scenario.sim)
+    plant, choice = stepping_plant(Plant(biped, plant_terrain, scenario.sim), scenario)
     dt = scenario.sim.dt
     control_every = step_count(1.0 / scenario.controller.wbc.rate_hz, dt,
                                "controller.wbc.rate_hz")
@@ -180,7 +191,21 @@ def build_simulation(scenario: ScenarioConfig, *, biped: Biped | None = None,
     return Simulation(scenario=scenario, biped=biped, plant=plant,
                       controller_terrain=ctrl_terrain, controller=controller, q0=q0,
                       pushes=pushes, control_every=control_every, log_every=log_every,
-                      n_steps=int(round(scenario.sim.duration / dt)))
+                      n_steps=int(round(scenario.sim.duration / dt)), plant_choice=choice)
+
+
+def stepping_plant(plant: Plant, scenario: ScenarioConfig):
+    """The plant that steps ``plant``'s model as ``scenario.sim.plant`` asks
+    (:func:`~granular_mpc.dynamics.select.select_plant`); a fallback to the reference
+    plant is printed as one line on stderr.
+
+    Returns:
+        ``(plant to step, PlantChoice)``.
+    """
+    stepping, choice = select_plant(plant, scenario.sim.plant)
+    if choice.note:
+        print(f"{scenario.name}: {choice.note}", file=sys.stderr)
+    return stepping, choice
 
 
 def push_windows(scenario: ScenarioConfig, schedule, dt: float) -> tuple[PushWindow, ...]:
@@ -234,5 +259,5 @@ def next_mid_stance(schedule, t0: float, side: str, t_max: float, dt: float) -> 
     return None
 
 
-__all__ = ["PushWindow", "Simulation", "build_simulation", "step_count", "push_windows",
-           "next_mid_stance"]
+__all__ = ["PushWindow", "Simulation", "build_simulation", "stepping_plant", "step_count",
+           "push_windows", "next_mid_stance"]

@@ -205,6 +205,8 @@ def _run_loop(sim, state, out: Path, log: RunLog, status: StatusWriter, signals:
         log_df = None
     summary = summarize(log_df, sim, state, wall_time_s=wall, complete=complete, reason=reason)
     summary.update(_provenance(status))
+    summary["plant"] = sim.plant_choice.resolved        # the plant that stepped
+    summary["plant_note"] = sim.plant_choice.reason     # why, when not the one asked for
     write_json(out / SUMMARY_FILE, summary)
     status.finish(end_state(complete, reason), reason)
     signals.release()

@@ -50,6 +50,7 @@ from ..effects import (SensorContext, apply_sensor_effects, effect_info, geometr
 from ..exceptions import ConfigError, GranularMpcError
 from ..parallel import map_tasks
 from ..runner import build_simulation, closed_loop
+from ..runner.build import stepping_plant
 from ..scenario import find_scenario, load_scenario, resolved_dict, scenario_from_dict
 from ..terrain import build_terrain
 from .dataformat import check_trials, load_dataset, write_dataset
@@ -123,9 +124,12 @@ def build_plant_simulation(scenario: ScenarioConfig, effects: Sequence[Any] = ()
                      if i.kind == "terrain_force"]
     geom = geometry_theta(resolved)
     joint_fn = joint_torque_function(resolved)
-    sim = build_simulation(scenario)
     if not terrain_specs and not geom and joint_fn is None:
-        return sim
+        return build_simulation(scenario)
+    # the plant is replaced below: build the rest without compiling a plant for nothing
+    ref_sim = scenario.sim.model_copy(update={"plant": "reference"})
+    sim = replace(build_simulation(scenario.model_copy(update={"sim": ref_sim})),
+                  scenario=scenario)
     cfg = scenario.terrain
     if geom:
         upd: dict[str, Any] = {}
@@ -140,9 +144,10 @@ def build_plant_simulation(scenario: ScenarioConfig, effects: Sequence[Any] = ()
         upd["surface_slope"] = slope
         cfg = cfg.model_copy(update=upd)
     terrain = build_terrain(cfg, scenario.robot, extra_effects=terrain_specs)
-    plant = Plant(sim.biped, terrain, scenario.sim,
-                  joint_effects=() if joint_fn is None else (joint_fn,))
-    return replace(sim, plant=plant)
+    plant, choice = stepping_plant(Plant(sim.biped, terrain, scenario.sim,
+                                         joint_effects=() if joint_fn is None else (joint_fn,)),
+                                   scenario)
+    return replace(sim, plant=plant, plant_choice=choice)
 
 
 def _runs_of(c: np.ndarray) -> list[tuple[int, int]]:

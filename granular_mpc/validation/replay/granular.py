@@ -11,6 +11,13 @@ measured from the free surface under the stance foot's touchdown point, which is
 world z of ``synth`` (its sand surface is at z = 0) and, for lab data, the only height
 the data define. With sensor effects, the initial state and the torques are the true
 ones (:func:`~.measurement.true_window`).
+
+The plant stepped is the compiled one (:meth:`~.model.ReplayModel.replay_plant`: each foot
+its own terrain θ, joint-effect parameters in θ, one compiled model for every variant)
+unless the model asks for the reference plant or the compiled one does not model the
+variant (then the reference :class:`~granular_mpc.dynamics.Plant`, named in the choice);
+both read and write the same per-foot contact buffers (``d.contact.feet[i]``).
+``tests/test_fast_path.py`` checks that both give the same replay.
 """
 
 from __future__ import annotations
@@ -20,10 +27,10 @@ from dataclasses import replace
 import numpy as np
 import pinocchio as pin
 
-from ...dynamics import Plant
+from ...dynamics import FastPlant
+from ...dynamics.step_sx import aux_foot
 from ...exceptions import PlantDivergedError
 from ...robot.model import SIDES, Biped
-from ...effects import joint_torque_function
 from ..prepare import FootInit, StanceWindow, patch_points
 from .measurement import true_window
 from .model import ReplayModel, Variant
@@ -57,9 +64,11 @@ def replay_granular(model: ReplayModel, w: StanceWindow, variant: Variant) -> di
     origin = np.array([w.origin[0], w.origin[1], 0.0])
     q0 = w.q0.copy()
     q0[0:3] += origin                        # local frame → the world's x, y
-    jfn = joint_torque_function(list(variant.joints))
-    plant = Plant(biped, model.terrain, model.sim, joint_effects=() if jfn is None else (jfn,))
+    plant, _choice = model.replay_plant(variant)
+    fast = isinstance(plant, FastPlant)
     d = plant.new_data(q0, w.v0)
+    if fast:                                 # the variant's joint-effect parameters
+        set_joint_params(plant, d, variant)
     cd = d.contact
     theta = model.theta_vector(variant.theta)
     names = model.terrain.param_names
@@ -79,34 +88,80 @@ def replay_granular(model: ReplayModel, w: StanceWindow, variant: Variant) -> di
             pts = patch_points(biped, d.pin.oMf[biped.foot_frame[side]])
             set_foot_state(buf, fi, _patch_velocity(biped, d.pin, side, pts))
     J = biped.joint_names
+    run = _run_compiled if fast else _run_reference
+    qa, grf, intr, other, diverged = run(plant, d, w, model.steps_per_sample)
+    return replay_outputs(qa, grf, intr, other, diverged, variant, scored, J)
+
+
+def _run_reference(plant, d, w: StanceWindow, sps: int) -> tuple:
+    """Step the reference plant through the window: (q_a, stance-foot force, intrusion,
+    other foot's vertical force, diverged), one row per sample (NaN after a divergence)."""
+    biped = plant.biped
     n = w.n
-    qa = np.full((n, len(J)), np.nan)
+    qa = np.full((n, len(biped.idx_q)), np.nan)
     grf = np.full((n, 3), np.nan)
     intr = np.full((n, 3), np.nan)
     other = np.full(n, np.nan)
     i, o = w.foot, 1 - w.foot
-    sps = model.steps_per_sample
-    diverged = False
-
-    def record(k):
-        qa[k] = d.q[biped.idx_q]
-        if d.foot_in_contact(i):
-            grf[k] = d.foot_force(i)
-            intr[k] = d.foot_diag(i)[2:5]
-        else:
-            grf[k] = 0.0
-            intr[k] = 0.0
-        other[k] = d.foot_force(o)[2] if d.foot_in_contact(o) else 0.0
-
     try:
         for k in range(n):
             tau = w.tau[k]
             for _ in range(sps):
                 plant.step(d, tau)
-            record(k)
+            qa[k] = d.q[biped.idx_q]
+            if d.foot_in_contact(i):
+                grf[k] = d.foot_force(i)
+                intr[k] = d.foot_diag(i)[2:5]
+            else:
+                grf[k] = 0.0
+                intr[k] = 0.0
+            other[k] = d.foot_force(o)[2] if d.foot_in_contact(o) else 0.0
     except PlantDivergedError:
-        diverged = True
-    return replay_outputs(qa, grf, intr, other, diverged, variant, scored, J)
+        return qa, grf, intr, other, True
+    return qa, grf, intr, other, False
 
 
-__all__ = ["replay_granular"]
+def _run_compiled(plant: FastPlant, d, w: StanceWindow, sps: int) -> tuple:
+    """:func:`_run_reference` on the compiled plant: ``sps`` steps per compiled call
+    (the replay's plant is built with ``chunk = steps_per_sample``), the state and the
+    auxiliary output kept per sample, the channels computed from them at the end."""
+    c, data = plant.compiled, d.data
+    L = c.layout
+    n = w.n
+    X = np.full((n, L.nx), np.nan)
+    A = np.full((n, data.aux.size), np.nan)
+    done, diverged = n, False
+    try:
+        for k in range(n):
+            data.tau[:] = w.tau[k]
+            c.advance(data, sps)
+            X[k] = data.x
+            A[k] = data.aux
+    except PlantDivergedError:
+        done, diverged = k, True
+    i, o = w.foot, 1 - w.foot
+    flags = X[:, L.contact].reshape(n, 2, L.n_patches, L.patch_state)[:, :, :, 6].max(axis=2)
+    on_i, on_o = (flags[:, i] > 0.5)[:, None], flags[:, o] > 0.5
+    qa = X[:, L.q][:, plant.biped.idx_q]
+    grf = np.where(on_i, aux_foot(A, i, "force"), 0.0)
+    intr = np.where(on_i, aux_foot(A, i, "diag")[:, 2:5], 0.0)
+    other = np.where(on_o, aux_foot(A, o, "force")[:, 2], 0.0)
+    for arr in (qa, grf, intr, other):
+        arr[done:] = np.nan                  # as the reference: nothing after a divergence
+    return qa, grf, intr, other, diverged
+
+
+def set_joint_params(plant: FastPlant, d, variant: Variant) -> None:
+    """Write the variant's joint-effect parameters into the compiled plant's θ (the
+    compiled joint effects the variant does not use stay at their neutral values)."""
+    c = plant.compiled
+    k0 = c.layout.joint_theta.start
+    given = {info.name: p for info, p in variant.joints}
+    for info in c.joint_params:
+        if info.name in given:
+            p = given[info.name]
+            d.data.theta[k0:k0 + len(info.params)] = [float(p[k]) for k in info.params]
+        k0 += len(info.params)
+
+
+__all__ = ["replay_granular", "set_joint_params"]

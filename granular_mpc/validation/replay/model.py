@@ -17,10 +17,13 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ...config import EffectSpec, SimConfig, load_terrain, terrain_from_dict
+from ...dynamics import Plant
+from ...dynamics.select import PlantChoice, default_plant_choice, select_plant
+from ...dynamics.step_sx import trace_joint_effect_params
 from ...exceptions import ConfigError
 from ...robot.model import Biped
 from ...terrain import build_terrain
-from ...effects import EffectInfo, effect_info
+from ...effects import EffectInfo, all_effects, effect_info, joint_torque_function
 
 MODELS = ("granular", "rigid", "planar")
 #: replay parameters that are not terrain θ: ``touchdown_depth`` [m] is the depth of the
@@ -68,6 +71,9 @@ class ReplayModel:
         sim: plant settings (``dt``, integrator).
         steps_per_sample: plant steps per measurement sample.
         terrain_effects: names of the compiled terrain-force effects.
+        plant: the plant the ``granular`` replay steps: ``compiled`` (default, unless
+            ``$GRANULAR_MPC_PLANT`` says otherwise) or ``reference``
+            (:mod:`granular_mpc.dynamics.select`).
     """
 
     biped: Biped
@@ -75,6 +81,56 @@ class ReplayModel:
     sim: SimConfig
     steps_per_sample: int
     terrain_effects: tuple = ()
+    plant: str = field(default_factory=default_plant_choice)
+
+    def compiled_plant(self):
+        """The compiled plant of the ``granular`` replay, built once per model (by
+        :func:`build_replay_model`, before any worker process forks, so they inherit it):
+        each foot its own terrain θ, every registered joint effect that CasADi can trace
+        compiled in with its parameters in θ (off at their neutral values), one call per
+        measurement sample (``chunk = steps_per_sample``).
+
+        Returns:
+            ``(FastPlant or None, PlantChoice)``: None when ``plant`` is ``reference`` or
+            the compiled plant does not model this one (the choice says why).
+        """
+        cache = self.__dict__.get("_compiled_cache")
+        if cache is None:
+            na = len(self.biped.idx_v)
+            joints = []
+            for info in all_effects(("joint",)).values():
+                if not info.neutral:
+                    continue
+                try:
+                    trace_joint_effect_params(info, na)
+                except ConfigError:
+                    continue                  # replays using it step the reference plant
+                joints.append(info)
+            plant, choice = select_plant(Plant(self.biped, self.terrain, self.sim), self.plant,
+                                         per_foot_theta=True, joint_params=tuple(joints),
+                                         chunk=self.steps_per_sample)
+            cache = (plant if choice.resolved == "compiled" else None, choice)
+            object.__setattr__(self, "_compiled_cache", cache)
+        return cache
+
+    def replay_plant(self, variant: "Variant"):
+        """The plant a ``granular`` replay of ``variant`` steps and the choice record:
+        the compiled plant (:meth:`compiled_plant`) when it models the variant's joint
+        effects, else the reference :class:`~granular_mpc.dynamics.Plant` with the reason."""
+        fast, choice = self.compiled_plant()
+        if fast is not None:
+            compiled = {i.name for i in fast.compiled.joint_params}
+            names = [info.name for info, _ in variant.joints]
+            missing = [n for n in names if n not in compiled]
+            if len(set(names)) != len(names):
+                missing = missing or ["an effect listed twice"]
+            if not missing:
+                return fast, choice
+            choice = PlantChoice(choice.requested, "reference",
+                                 f"joint effect(s) {', '.join(missing)} not compiled")
+        jfn = joint_torque_function(list(variant.joints))
+        return Plant(self.biped, self.terrain, self.sim,
+                     joint_effects=() if jfn is None else (jfn,)), choice
 
     @property
     def dt(self) -> float:
@@ -99,9 +155,12 @@ class ReplayModel:
 
 def build_replay_model(biped: Biped, terrain_cfg, *, sample_rate_hz: float,
                        sim: SimConfig | None = None,
-                       terrain_effects: Sequence[str] = ()) -> ReplayModel:
+                       terrain_effects: Sequence[str] = (),
+                       plant: str | None = None) -> ReplayModel:
     """Compile the terrain with the terrain-force effects ``terrain_effects`` (all at their
-    neutral values: switch them on through :class:`Variant` θ)."""
+    neutral values: switch them on through :class:`Variant` θ); ``plant`` (``compiled``,
+    ``reference``, default :func:`~granular_mpc.dynamics.select.default_plant_choice`)
+    chooses the plant of the ``granular`` replay."""
     sim = sim or SimConfig()
     names = []
     for n in terrain_effects:
@@ -112,8 +171,12 @@ def build_replay_model(biped: Biped, terrain_cfg, *, sample_rate_hz: float,
     specs = [s for s in specs if s.name not in already]
     terrain = build_terrain(terrain_cfg, biped.config, extra_effects=specs)
     sps = max(1, int(round(1.0 / (sample_rate_hz * sim.dt))))
-    return ReplayModel(biped, terrain, sim, sps,
-                       tuple(list(already) + [s.name for s in specs]))
+    model = ReplayModel(biped, terrain, sim, sps,
+                        tuple(list(already) + [s.name for s in specs]),
+                        default_plant_choice() if plant is None else plant)
+    if model.plant == "compiled":
+        model.compiled_plant()               # here, so that forked workers inherit it
+    return model
 
 
 def effect_variant(specs: Sequence[tuple[EffectInfo, Mapping[str, float]]],
