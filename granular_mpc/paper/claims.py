@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from .gaps import GapAblations
 from .measures import (READING, StanceCurves, late_share, opening_phase, read_summary,
                        speed_shape)
 from .model_check import AGREEMENT, HIP_KNEE, ModelCheck
@@ -65,8 +66,9 @@ class ClaimBuilder:
     """Builds the rows from the runs of one comparison."""
 
     def __init__(self, runs: PaperRuns, curves: dict, model: ModelCheck, x_edge: float,
-                 first_sand_td: float) -> None:
+                 first_sand_td: float, gaps: GapAblations | None = None) -> None:
         self.runs = runs
+        self.gaps = gaps              # measured reasons (bench/paper_gaps.py), if any
         self.curves = curves          # (terrain, speed) -> StanceCurves
         self.model = model
         self.x_edge = x_edge
@@ -108,8 +110,10 @@ class ClaimBuilder:
                                f"({s.get('fall_reason')})")
         if not out:
             return ""
-        return ("; left out: " + ", ".join(out) + " — the fall is not explained by a "
-                "measurement yet")
+        why = (self.gaps.fall_05() if self.gaps is not None and any(
+                   self.summary(SAND, v).get("fell") for v in self.runs.plan.speeds if v >= 0.5)
+               else "the fall is not explained by a measurement yet")
+        return "; left out: " + ", ".join(out) + " — " + why
 
     def power_spread(self, terrain: str) -> str:
         """Mean actuator power per speed (E / window) — measured, for the U-shape rows."""
@@ -126,6 +130,12 @@ class ClaimBuilder:
         return (f"mean actuator power {min(p):.1f}–{max(p):.1f} W over "
                 f"{out[0][0]:g}–{out[-1][0]:g} m/s (×{max(p) / min(p):.2f}) while the distance "
                 f"grows ∝ v, so CoT falls ≈ 1/v (E/window of each run's summary.json)")
+
+    def _gap_reason(self, terrain: str) -> str:
+        """The measured reason of a CoT row (empty without ablation figures)."""
+        if self.gaps is None:
+            return ""
+        return self.gaps.cot_sand() if terrain == SAND else self.gaps.cot_rigid()
 
     # ------------------------------------------------------------------ rows
     def rows(self) -> list[ClaimRow]:
@@ -144,6 +154,7 @@ class ClaimBuilder:
                 f"{paper:g}", f"{_fmt(ours)} ({READING}; {self.readings(s)})",
                 _ratio(ours, paper), self.p_sweep,
                 "agrees" if _agrees(ours, paper) else
+                self._gap_reason(terrain) or
                 ("not explained by a measurement yet: the readings of the same run span "
                  f"{self.readings(s)}; the plant's actuators are ideal (sim.actuators off: "
                  "mechanical work, no motor loss), the effect of sim.actuators on the CoT is "
@@ -177,6 +188,7 @@ class ClaimBuilder:
             "1.12–1.62", f"{_fmt(lo)}–{_fmt(hi)} ({READING}; per speed {per})",
             f"min {_ratio(lo, 1.12)}, max {_ratio(hi, 1.62)}", self.p_sweep,
             ("agrees (both ends within 0.8–1.25 × the paper's)" if inside else
+             self.gaps.ratio_range() if self.gaps is not None else
              "not explained by a measurement yet (see rows cot_sand, cot_rigid)") + falls,
             self.runs.rel(self.runs.sweep_dir), lo)]
         for terrain, key in ((SAND, "u_shape_sand"), (RIGID, "u_shape_rigid")):
@@ -203,6 +215,7 @@ class ClaimBuilder:
                      "≈ 20 %", f"{_fmt(onset, 0)} % ({cs.n_stances}/{cr.n_stances} stances)",
                      _ratio(onset, 20.0), self.p_sweep,
                      "agrees" if _agrees(onset, 20.0) else
+                     self.gaps.cost_opening() if self.gaps is not None else
                      "not explained by a measurement yet", src, onset),
             ClaimRow("pullout_jump", "jump of the sand CoT at pull-out (late stance, Fig. 6c)",
                      "significant jump", f"last 10 % of stance: {_fmt(100 * ls, 0)} % of the "
@@ -226,6 +239,7 @@ class ClaimBuilder:
                      f"{_fmt(100 * cs.plateau_fraction, 0)} % of stance)",
                      _ratio(cs.plateau_onset_pct, 40.0), self.p_sweep,
                      "agrees" if _agrees(cs.plateau_onset_pct, 40.0) else
+                     self.gaps.plateau_onset() if self.gaps is not None else
                      "not explained by a measurement yet", src, cs.plateau_onset_pct),
             ClaimRow("plateau_fades", "the plateau fades at higher speed (text commented out "
                      "in the paper's source)", "disappears at high speed",
@@ -273,8 +287,9 @@ class ClaimBuilder:
                      ", ".join(f"{c[4:]} {gg[c]:.2f}" for c in gg),
                      "— (qualitative: over-prediction in 3 axes)", self.p_model,
                      "agrees" if over == len(rg) else
-                     f"the rigid model over-predicts in {over} of 3 axes on this data set; not "
-                     "explained by an ablation yet", src, float(rg["grf_z"])),
+                     f"the rigid model over-predicts in {over} of 3 axes on this data set; " +
+                     (self.gaps.rigid_grf() if self.gaps is not None else
+                      "not explained by an ablation yet"), src, float(rg["grf_z"])),
             ClaimRow("hip_knee_better", "the granular model predicts hip and knee angles better "
                      "than the rigid-ground model (Fig. 5a, q_2,3,5,6)", "better (4 of 4)",
                      f"better in {better} of 4 (RMSE granular/rigid [rad]: {per})",

@@ -9,6 +9,7 @@ from pathlib import Path
 from ..config import load_terrain
 from ..output import make_output_folder
 from .claims import ClaimBuilder, ClaimRow
+from .gaps import load_gaps
 from .figures import plot_cot_speed, plot_stance_curves
 from .measures import first_touchdown_on, stance_curves
 from .model_check import ModelCheck, model_check
@@ -47,7 +48,8 @@ class PaperComparison:
 
 
 def paper_comparison(out_dir: str | Path, *, quick: bool = False,
-                     workers: int | None = None, overwrite: bool = False) -> PaperComparison:
+                     workers: int | None = None, overwrite: bool = False,
+                     gaps: str | Path | None = None) -> PaperComparison:
     """Run what the paper comparison needs and write ``out_dir/paper_comparison.md``.
 
     Runs (``granular_mpc.paper.runs``): the speed sweep ``sim/paper_sweep.yaml`` (rigid-
@@ -65,6 +67,9 @@ def paper_comparison(out_dir: str | Path, *, quick: bool = False,
         quick: shortened runs (about a minute; for tests): every row is still produced,
             the protocol column says ``quick``.
         workers: processes for the runs and replays (default: all cores).
+        gaps: the ablation figures (``bench/paper_gaps.py --json``) that the reasons of
+            the rows differing from the paper cite; default: the ones measured on the
+            submitted code (:data:`granular_mpc.paper.gaps.DEFAULT_GAPS`).
 
     Returns:
         :class:`PaperComparison`.
@@ -76,11 +81,11 @@ def paper_comparison(out_dir: str | Path, *, quick: bool = False,
     t0 = time.perf_counter()
     out = make_output_folder(out_dir)
     runs = run_all(out, RunPlan.make(quick), workers=workers, overwrite=overwrite)
-    return tabulate(runs, workers=workers, t0=t0)
+    return tabulate(runs, workers=workers, t0=t0, gaps=gaps)
 
 
 def tabulate(runs: PaperRuns, *, workers: int | None = None,
-             t0: float | None = None) -> PaperComparison:
+             t0: float | None = None, gaps: str | Path | None = None) -> PaperComparison:
     """The table and figures of runs already made by :func:`paper_comparison` (the two
     replays are redone; the closed-loop runs are read from ``runs.out_dir``).
 
@@ -88,6 +93,7 @@ def tabulate(runs: PaperRuns, *, workers: int | None = None,
         runs: where the runs are (``PaperRuns(out_dir, RunPlan.make(quick))``).
         workers: processes for the replays.
         t0: ``time.perf_counter()`` at the start, for the wall time in the table.
+        gaps: see :func:`paper_comparison`.
     """
     t0 = time.perf_counter() if t0 is None else t0
     out, plan = runs.out_dir, runs.plan
@@ -97,7 +103,8 @@ def tabulate(runs: PaperRuns, *, workers: int | None = None,
     model = model_check(runs.dataset_dir, out, workers=workers)
     x_edge = load_terrain("paper_track").edges[0]
     builder = ClaimBuilder(runs, curves, model, x_edge,
-                           first_touchdown_on(runs.track_run("exact"), x_edge))
+                           first_touchdown_on(runs.track_run("exact"), x_edge),
+                           load_gaps(gaps))
     rows = tuple(builder.rows())
     fig_dir = out / "figures"
     figs = (

@@ -37,11 +37,14 @@ def run_weight(summary: dict) -> float:
     return float(summary["energy_J"]) / (float(summary["cot"]) * float(summary["distance_m"]))
 
 
-def steady_segments(log: pd.DataFrame, t_start: float) -> pd.DataFrame:
-    """Complete contact stances (touchdown to lift-off, :func:`contact_segments`, whose
-    20 ms debounce merges the landing bounce on rigid ground into its stance) touching down
-    at or after ``t_start``."""
-    seg = contact_segments(log)
+def steady_segments(log: pd.DataFrame, t_start: float, source: str = "auto") -> pd.DataFrame:
+    """Complete stances touching down at or after ``t_start`` [s].
+
+    ``source`` is the stance source of :func:`contact_segments` (``"auto"``: the plant's
+    contact state, touchdown to lift-off, whose 20 ms debounce merges the landing bounce on
+    rigid ground into its stance; ``"force"``, ``"planned"``: the other definitions, for the
+    segmentation ablation of ``bench/paper_gaps.py``)."""
+    seg = contact_segments(log, source=source)
     return seg[seg["t_start"] >= t_start].reset_index(drop=True)
 
 
@@ -81,13 +84,20 @@ def _mean_on_phase(df: pd.DataFrame, column: str) -> np.ndarray:
     return np.nanmean(np.stack(curves), axis=0) if curves else np.full(PHASE.shape, np.nan)
 
 
-def stance_curves(run_dir: str | Path) -> StanceCurves:
-    """The stance-phase figures of a run (see :class:`StanceCurves`)."""
+def stance_curves(run_dir: str | Path, *, source: str = "auto",
+                  reading: str = READING) -> StanceCurves:
+    """The stance-phase figures of a run (see :class:`StanceCurves`).
+
+    Args:
+        run_dir: the run folder.
+        source: stance source (:func:`steady_segments`).
+        reading: CoT reading of the cumulative curve (``analysis.COT_READINGS``).
+    """
     summary = read_summary(run_dir)
     log = read_log(run_dir)
-    seg = steady_segments(log, float(summary["window_s"][0]))
+    seg = steady_segments(log, float(summary["window_s"][0]), source)
     w = run_weight(summary)
-    cum = stance_cumulative_cot(log, weight=w, segments=seg, mode=reading_mode(READING),
+    cum = stance_cumulative_cot(log, weight=w, segments=seg, mode=reading_mode(reading),
                                 normalise="final")
     roll = rolling_from_log(log, segments=seg)
     plat = plateau_by_stance(roll)

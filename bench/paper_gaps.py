@@ -1,0 +1,460 @@
+"""Why our figures differ from the paper's: one-knob ablations of the paper sweep (issue 10).
+
+    GRANULAR_MPC_PROXSUITE=generic python bench/paper_gaps.py [--out runs/paper_gaps]
+        [--json PATH] [--cases base actuators ...] [--seconds 12] [--quick]
+
+Each *knob* changes one thing of the paper comparison's sweep protocol
+(``sim/paper_sweep.yaml``: rigid-ground controller, the paper's gait + 39 ms touchdown
+double support, 0.2 m/s, 12 s) and is run closed loop on the terrains it concerns (dry sand
+and/or rigid ground), one run at a time, through the public API (``load_scenario``
+overrides, ``run_scenario``). The figures of each run are the ones the paper comparison
+reports (:mod:`granular_mpc.paper.measures`, the same functions): CoT under its three
+readings, the sand − rigid cumulative-CoT opening phase, the late-stance share, the Δθ_r
+plateau onset and coverage. A knob run on sand only is paired with the base rigid run (and
+vice versa) for the ratio and the opening.
+
+Two knobs need no new run (*readings* of the base runs): the stance segmentation
+(contact / force / planned, :func:`granular_mpc.analysis.contact_segments`) and an
+electrical CoT reading (mechanical power plus the copper loss R_w (τ/(k_t N))² of the
+default motor model, ``sim.actuators.motor``; no regeneration). A third reading checks the
+plateau detector: its relative threshold doubled (0.1 → 0.2 of the stance's mean |θ̇_r|).
+
+The 0.5 m/s sand run of the paper sweep falls; ``fall_*`` cases re-run it and record the
+first failing signals (the thresholds of ``bench/paper_ablation.py``) and one ablation of
+the cause.
+
+Writes ``OUT/runs/<case>_<terrain>/`` (run folders) and, with ``--json``, every figure as
+JSON (the paper comparison's claims cite these numbers: docs/paper-experiment-notes.md §7).
+``--quick`` runs two knobs for 3 s (a test of the script, not a result).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+os.environ.setdefault("GRANULAR_MPC_PROXSUITE", "generic")   # bit-reproducible runs
+
+import numpy as np  # noqa: E402
+
+from granular_mpc.analysis import plateau_by_stance, rolling_from_log  # noqa: E402
+from granular_mpc.columns import foot_column, joint_columns  # noqa: E402
+from granular_mpc.config.scenario import MotorConfig  # noqa: E402
+from granular_mpc.paper.measures import (late_share, opening_phase, read_summary,  # noqa: E402
+                                         run_weight, stance_curves, steady_segments)
+from granular_mpc.robot.model import load_biped  # noqa: E402
+from granular_mpc.rotations import rpy_rows_from_quat_wxyz  # noqa: E402
+from granular_mpc.runlog import read_log  # noqa: E402
+from granular_mpc.runner import run_scenario  # noqa: E402
+from granular_mpc.scenario import load_scenario  # noqa: E402
+from granular_mpc.validation.dataformat import load_dataset  # noqa: E402
+from granular_mpc.validation.prepare import stance_windows, windows_frame  # noqa: E402
+from granular_mpc.validation.replay import (build_replay_model, model_terrain,  # noqa: E402
+                                            replay_rigid)
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENARIO = ROOT / "sim" / "paper_sweep.yaml"
+SAND, RIGID = "dry_sand", "rigid"
+BOTH, SAND_ONLY, RIGID_ONLY = (SAND, RIGID), (SAND,), (RIGID,)
+ACTUATORS = ("sim.actuators.friction.enabled=true", "sim.actuators.motor.enabled=true")
+
+
+@dataclass(frozen=True)
+class Knob:
+    """One ablation: one change of the paper sweep's protocol.
+
+    Attributes:
+        name: short name (table row, run folder prefix).
+        what: one line on what changes.
+        terrains: terrains it is run on.
+        overrides: scenario overrides on top of ``sim/paper_sweep.yaml``.
+        speed: commanded speed [m/s].
+        rows: the comparison rows (claim keys) it tests.
+    """
+
+    name: str
+    what: str
+    terrains: tuple[str, ...]
+    overrides: tuple[str, ...] = ()
+    speed: float = 0.2
+    rows: tuple[str, ...] = ()
+
+
+COT_ROWS = ("cot_sand", "cot_rigid", "cot_ratio_02", "cot_ratio_range")
+STANCE_ROWS = ("cost_opening", "pullout_jump", "plateau_sand", "plateau_rigid")
+KNOBS: tuple[Knob, ...] = (
+    Knob("base", "the paper sweep's protocol (reference)", BOTH, (), 0.2,
+         COT_ROWS + STANCE_ROWS),
+    Knob("actuators", "sim.actuators on: joint friction + motor model (docs/model.md §3.1)",
+         BOTH, ACTUATORS, 0.2, COT_ROWS + STANCE_ROWS),
+    Knob("zeta_half", "sand half as strong: ζ 1.36 → 0.68", SAND_ONLY, ("terrain.zeta=0.68",),
+         0.2, COT_ROWS + STANCE_ROWS),
+    Knob("zeta_double", "sand twice as strong: ζ 1.36 → 2.72", SAND_ONLY, ("terrain.zeta=2.72",),
+         0.2, COT_ROWS + STANCE_ROWS),
+    Knob("phi_30", "weaker solidified zone: φ_s 38° → 30°", SAND_ONLY, ("terrain.phi_s_deg=30",),
+         0.2, COT_ROWS + STANCE_ROWS),
+    Knob("transfer_0", "no touchdown double support (the paper's gait exactly; rigid ground "
+         "only: on sand it falls, notes §1)", RIGID_ONLY, ("controller.gait.load_transfer=0",),
+         0.2, COT_ROWS + ("cost_opening",)),
+    Knob("transfer_78", "touchdown double support 39 → 78 ms", BOTH,
+         ("controller.gait.load_transfer=0.078",), 0.2, COT_ROWS + STANCE_ROWS),
+    Knob("swing_5cm", "swing apex 10 → 5 cm", BOTH, ("controller.swing.height=0.05",), 0.2,
+         COT_ROWS),
+    Knob("base_v01", "the reference at 0.1 m/s (the end of the ratio range furthest from "
+         "the paper's)", BOTH, (), 0.1, ("cot_ratio_range",)),
+    Knob("actuators_v01", "sim.actuators on, 0.1 m/s", BOTH, ACTUATORS, 0.1,
+         ("cot_ratio_range",)),
+    Knob("zeta_half_v01", "ζ 1.36 → 0.68, 0.1 m/s", SAND_ONLY, ("terrain.zeta=0.68",), 0.1,
+         ("cot_ratio_range",)),
+    Knob("base_v04", "the reference at 0.4 m/s (plateau against speed)", SAND_ONLY, (), 0.4,
+         ("plateau_fades",)),
+    Knob("fall_v05", "the sand run at 0.5 m/s that falls (first failing signals)", SAND_ONLY,
+         (), 0.5, ("fall_05",)),
+    Knob("fall_v05_noint", "0.5 m/s without the foothold's integral speed correction "
+         "(controller.foothold.k_speed_integral 0.5 → 0)", SAND_ONLY,
+         ("controller.foothold.k_speed_integral=0",), 0.5, ("fall_05",)),
+)
+QUICK_KNOBS = ("base", "actuators")
+
+#: failing-signal thresholds (as bench/paper_ablation.py)
+PITCH_DEG, ROLL_DEG, COM_DROP_M, SLIP_M, SINK_M = 5.0, 5.0, 0.030, 0.030, 0.040
+
+
+@dataclass(frozen=True)
+class RunFigures:
+    """The comparison's figures of one run.
+
+    Attributes:
+        knob, terrain, speed: which run.
+        run_dir: its folder.
+        fell, fall_time_s, fall_reason: from ``summary.json``.
+        cot, cot_abs_net, cot_positive: the three CoT readings (NaN if it fell).
+        cot_electrical: mechanical + copper loss of the default motor, no regeneration.
+        mean_speed_mps, sinkage_mm, slip_mm: from ``summary.json``.
+        n_stances: steady contact stances.
+        plateau_onset_pct, plateau_share, plateau_fraction: Δθ_r plateaus (contact stances).
+        late_share: share of the stance cost in its last 10 %.
+        first_signals: first failing signals ``(name, t [s])``, earliest first.
+        wall_s: wall time of the run [s].
+    """
+
+    knob: str
+    terrain: str
+    speed: float
+    run_dir: str
+    fell: bool
+    fall_time_s: float
+    fall_reason: str
+    cot: float
+    cot_abs_net: float
+    cot_positive: float
+    cot_electrical: float
+    mean_speed_mps: float
+    sinkage_mm: float
+    slip_mm: float
+    n_stances: int
+    plateau_onset_pct: float
+    plateau_share: float
+    plateau_fraction: float
+    late_share: float
+    first_signals: tuple
+    wall_s: float
+
+
+def _num(x) -> float:
+    return float("nan") if x is None else float(x)
+
+
+def electrical_cot(run_dir: Path, summary: dict, motor: MotorConfig | None = None) -> float:
+    """CoT of the electrical energy over the summary window: Σ_i max(τ_i q̇_i +
+    R_w (τ_i / (k_t N_i))², 0) integrated, over (W d) — the default motor's copper loss
+    added to the mechanical power, no regeneration."""
+    motor = motor or MotorConfig()
+    log = read_log(run_dir)
+    a, b = summary["window_s"]
+    log = log[(log["time"] >= a) & (log["time"] <= b)]
+    names = [c[len("tau_"):] for c in log.columns if c.startswith("tau_")]
+    tau = log[joint_columns(names, "tau")].to_numpy(dtype=float)
+    dq = log[joint_columns(names, "dq")].to_numpy(dtype=float)
+    n = np.resize(np.asarray(motor.gear_ratio, dtype=float), len(names))
+    kt = float(np.atleast_1d(motor.torque_constant)[0])
+    rw = float(np.atleast_1d(motor.winding_resistance)[0])
+    p = np.maximum(tau * dq + rw * (tau / (kt * n)) ** 2, 0.0).sum(axis=1)
+    t = log["time"].to_numpy(dtype=float)
+    energy = float(np.sum(0.5 * (p[1:] + p[:-1]) * np.diff(t)))
+    return energy / (run_weight(summary) * float(summary["distance_m"]))
+
+
+def failing_signals(run_dir: Path, biped) -> tuple[tuple[str, float], ...]:
+    """First time each failing signal trips after the weight shift (earliest first)."""
+    log = read_log(run_dir)
+    log = log[log["time"] >= 0.5].reset_index(drop=True)
+    t = log["time"].to_numpy()
+    out: dict[str, float] = {}
+
+    def first(name, mask):
+        idx = np.flatnonzero(mask)
+        if len(idx):
+            out[name] = float(t[idx[0]])
+
+    rpy = rpy_rows_from_quat_wxyz(log[["base_qw", "base_qx", "base_qy", "base_qz"]].to_numpy())
+    first(f"pitch>{PITCH_DEG:g}", np.abs(np.degrees(rpy[:, 1])) > PITCH_DEG)
+    first(f"roll>{ROLL_DEG:g}", np.abs(np.degrees(rpy[:, 0])) > ROLL_DEG)
+    first("com_drop>30mm", log["com_z"].to_numpy() < log["com_z"].iloc[0] - COM_DROP_M)
+    tau = log[joint_columns(biped.joint_names, "tau")].to_numpy()
+    sat = np.abs(tau) >= 0.99 * np.asarray(biped.torque_limits)[None, :]
+    for j, n in enumerate(biped.joint_names):
+        first(f"tau_sat:{n}", sat[:, j])
+    first("slip>30mm", np.hypot(log["intrusion_x"].to_numpy(), log["intrusion_y"].to_numpy())
+          > SLIP_M)
+    first("sink>40mm", np.maximum(log[foot_column("left", "depth")].to_numpy(),
+                                  log[foot_column("right", "depth")].to_numpy()) > SINK_M)
+    return tuple(sorted(out.items(), key=lambda kv: kv[1]))
+
+
+def run_knob(knob: Knob, terrain: str, out: Path, seconds: float, quick: bool,
+             reuse: bool = False) -> Path:
+    """Run one knob on one terrain; the run folder (``reuse``: keep a complete run of the
+    same length already there)."""
+    folder = out / "runs" / f"{knob.name}_{terrain}"
+    if reuse and (folder / "summary.json").is_file():
+        s = read_summary(folder)
+        if s.get("complete") and abs(float(s.get("duration_s") or -1) - seconds) < 1e-9:
+            return folder
+    over = ["sweep=null", f"terrain={terrain}", f"command.speed={knob.speed:g}",
+            f"sim.duration={seconds:g}", "output.plots=false", *knob.overrides]
+    if quick:
+        over += ["metrics.settle=0.2", "command.max_acceleration=1.0"]
+    sc = load_scenario(SCENARIO, over)
+    run_scenario(sc, folder, progress=False, overwrite=True)
+    return folder
+
+
+def figures(knob: Knob, terrain: str, folder: Path, biped, wall: float) -> RunFigures:
+    """:class:`RunFigures` of one run folder."""
+    s = read_summary(folder)
+    fell = bool(s.get("fell"))
+    nan = float("nan")
+    try:
+        c = stance_curves(folder)
+        onset, share, frac, n = (c.plateau_onset_pct, c.plateau_share, c.plateau_fraction,
+                                 c.n_stances)
+        late = late_share(c.cot_cum)
+    except (ValueError, KeyError, TypeError):   # too few steady stances, no CoT (a fall)
+        onset = share = frac = late = nan
+        n = 0
+    elec = electrical_cot(folder, s) if s.get("energy_J") and not fell else nan
+    return RunFigures(
+        knob.name, terrain, knob.speed, str(folder), fell, _num(s.get("fall_time_s")),
+        str(s.get("fall_reason") or ""),
+        nan if fell else _num(s.get("cot_abs_per_joint")),
+        nan if fell else _num(s.get("cot_abs_net")),
+        nan if fell else _num(s.get("cot_positive")), elec,
+        _num(s.get("mean_speed_mps")), _num(s.get("sinkage_peak_mm_mean")),
+        _num(s.get("slip_mm_mean")), n, onset, share, frac, late,
+        failing_signals(folder, biped), wall)
+
+
+def pair_figures(sand: Path, rigid: Path) -> dict:
+    """Figures that need a sand and a rigid run: CoT ratio (three readings), opening."""
+    ss, sr = read_summary(sand), read_summary(rigid)
+    out = {}
+    for r in ("abs_per_joint", "abs_net", "positive"):
+        a, b = ss.get(f"cot_{r}"), sr.get(f"cot_{r}")
+        ok = a and b and not ss.get("fell") and not sr.get("fell")
+        out[f"ratio_{r}"] = float(a / b) if ok else float("nan")
+    try:
+        out["opening_pct"] = opening_phase(stance_curves(sand).cot_cum,
+                                           stance_curves(rigid).cot_cum)
+    except (ValueError, KeyError, TypeError):
+        out["opening_pct"] = float("nan")
+    return out
+
+
+def readings(sand: Path, rigid: Path) -> dict:
+    """The no-run knobs on the base runs: stance segmentation, electrical CoT, plateau
+    detector threshold."""
+    out = {}
+    for src in ("contact", "force", "planned"):
+        cs, cr = stance_curves(sand, source=src), stance_curves(rigid, source=src)
+        out[f"segmentation_{src}"] = {
+            "opening_pct": opening_phase(cs.cot_cum, cr.cot_cum),
+            "plateau_onset_sand_pct": cs.plateau_onset_pct,
+            "plateau_fraction_sand": cs.plateau_fraction,
+            "plateau_fraction_rigid": cr.plateau_fraction,
+            "late_share_sand": late_share(cs.cot_cum),
+            "n_stances": [cs.n_stances, cr.n_stances]}
+    ss, sr = read_summary(sand), read_summary(rigid)
+    es, er = electrical_cot(sand, ss), electrical_cot(rigid, sr)
+    out["cot_electrical"] = {"sand": es, "rigid": er, "ratio": es / er}
+    for name, run in (("sand", sand), ("rigid", rigid)):
+        log = read_log(run)
+        seg = steady_segments(log, float(read_summary(run)["window_s"][0]))
+        plat = plateau_by_stance(rolling_from_log(log, segments=seg), rel_threshold=0.2)
+        has = plat["n_plateaus"] > 0
+        out[f"plateau_threshold_x2_{name}"] = {
+            "onset_pct": float(plat.loc[has, "onset_pct"].median()) if has.any() else math.nan,
+            "fraction": float(plat["fraction"].mean())}
+    return out
+
+
+def rigid_grf_ablation(dataset: Path) -> dict:
+    """The rigid-ground model's GRF on the comparison's data set, two ways.
+
+    ``as_validate``: the stances replayed as ``validate --model rigid`` does (the other foot
+    pinned too when it starts in contact — the 39 ms touchdown double support — until its
+    constraint force would pull). ``other_foot_free``: the same replay with the other foot
+    free from the start (single stance). ``stabilisation_x4``: the constraint's drift
+    feedback k 50 → 200 1/s. Per GRF axis: mean |F| predicted / measured, and
+    the mean vertical force over the stance [N] (measured vs predicted)."""
+    ds = load_dataset(dataset)
+    biped = load_biped(ds.meta.robot, with_visuals=False)
+    rm = build_replay_model(biped, model_terrain("dry_sand"),
+                            sample_rate_hz=ds.meta.sample_rate_hz)
+    windows = stance_windows(ds, biped, contact_stiffness=rm.contact_stiffness)
+    chans = ["grf_x", "grf_y", "grf_z"]
+    meas = windows_frame(windows, None, chans)
+    out = {"n_stances": len(windows),
+           "n_other_foot_in_contact": int(sum(w.feet[1 - w.foot].in_contact for w in windows)),
+           "measured_mean_fz_N": float(meas["grf_z"].mean())}
+    for label, free, k in (("as_validate", False, 50.0), ("other_foot_free", True, 50.0),
+                           ("stabilisation_x4", False, 200.0)):
+        preds = []
+        for w in windows:
+            if free and w.feet[1 - w.foot].in_contact:
+                feet = list(w.feet)
+                feet[1 - w.foot] = dataclasses.replace(feet[1 - w.foot], in_contact=False)
+                w = dataclasses.replace(w, feet=tuple(feet))
+            preds.append(replay_rigid(rm, w, stabilisation=k))
+        pred = windows_frame(windows, preds, chans)
+        ratio = {}
+        for c in chans:
+            m, p = meas[c].to_numpy(dtype=float), pred[c].to_numpy(dtype=float)
+            ok = np.isfinite(m) & np.isfinite(p)
+            ratio[c] = float(np.abs(p[ok]).mean() / np.abs(m[ok]).mean())
+        out[label] = {"ratio": ratio, "mean_fz_N": float(np.nanmean(pred["grf_z"])),
+                      "diverged": int(sum(bool(p.get("diverged")) for p in preds))}
+    return out
+
+
+def _f(x, nd=2) -> str:
+    return f"{x:.{nd}f}" if isinstance(x, (int, float)) and math.isfinite(x) else "—"
+
+
+def table(results: list[RunFigures], pairs: dict) -> str:
+    """Markdown table: one row per knob (sand, rigid, derived figures)."""
+    head = ("| knob | v | CoT sand (Σ\\|τq̇\\| / abs_net / pos / elec) | CoT rigid | ratio | "
+            "opening [%] | plateau onset sand [%] | plateau cover sand/rigid [%] | "
+            "late share sand [%] | sink/slip sand [mm] | fell |\n|" + "---|" * 11)
+    lines = [head]
+    by = {(r.knob, r.terrain): r for r in results}
+    for knob in dict.fromkeys(r.knob for r in results):
+        s, r = by.get((knob, SAND)), by.get((knob, RIGID))
+        p = pairs.get(knob, {})
+        cot = (lambda x: f"{_f(x.cot)} / {_f(x.cot_abs_net)} / {_f(x.cot_positive)} / "
+               f"{_f(x.cot_electrical)}" if x else "(base)")
+        fell = ", ".join(f"{x.terrain} at {_f(x.fall_time_s)} s" for x in (s, r) if x and x.fell)
+        v = (s or r).speed
+        lines.append(
+            f"| {knob} | {v:g} | {cot(s)} | {cot(r)} | {_f(p.get('ratio_abs_per_joint'))} | "
+            f"{_f(p.get('opening_pct'), 0)} | {_f(s.plateau_onset_pct, 0) if s else '—'} | "
+            f"{_f(100 * s.plateau_fraction, 0) if s else '—'}/"
+            f"{_f(100 * r.plateau_fraction, 0) if r else '—'} | "
+            f"{_f(100 * s.late_share, 0) if s else '—'} | "
+            f"{_f(s.sinkage_mm, 1) + '/' + _f(s.slip_mm, 1) if s else '—'} | {fell or 'no'} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="runs/paper_gaps", help="folder for the runs")
+    ap.add_argument("--json", default=None, help="write every figure as JSON to this path")
+    ap.add_argument("--cases", nargs="+", default=None, help="knob names (default: all)")
+    ap.add_argument("--seconds", type=float, default=12.0, help="simulated seconds per run")
+    ap.add_argument("--quick", action="store_true", help="2 knobs x 3 s (a test, not a result)")
+    ap.add_argument("--list", action="store_true", help="list the knobs and exit")
+    ap.add_argument("--reuse", action="store_true",
+                    help="keep complete runs of the same length already in --out")
+    ap.add_argument("--dataset", default=None,
+                    help="the paper comparison's data set (DIR/dataset): also run the rigid "
+                         "model's GRF ablation on it")
+    ap.add_argument("--replay-only", action="store_true",
+                    help="with --dataset: only the replay ablation (no closed-loop runs)")
+    args = ap.parse_args(argv)
+    by_name = {k.name: k for k in KNOBS}
+    if args.list:
+        for k in KNOBS:
+            print(f"{k.name:14s} {'+'.join(k.terrains):15s} {k.speed:g} m/s  {k.what}")
+        return {}
+    if args.replay_only:
+        if not args.dataset:
+            ap.error("--replay-only needs --dataset")
+        rep = rigid_grf_ablation(Path(args.dataset))
+        print(json.dumps(rep, indent=1))
+        if args.json:
+            Path(args.json).write_text(json.dumps({"rigid_grf": rep}, indent=1))
+        return {"rigid_grf": rep}
+    names = list(QUICK_KNOBS) if args.quick else (args.cases or [k.name for k in KNOBS])
+    unknown = [n for n in names if n not in by_name]
+    if unknown:
+        ap.error(f"unknown knob(s) {unknown}; known: {sorted(by_name)}")
+    if "base" not in names:
+        names.insert(0, "base")              # every pair needs the reference
+    seconds = 3.0 if args.quick else args.seconds
+    out = Path(args.out)
+    biped = load_biped(with_visuals=False)
+    print(f"GRANULAR_MPC_PROXSUITE={os.environ['GRANULAR_MPC_PROXSUITE']}, {seconds:g} s "
+          f"per run", flush=True)
+    results: list[RunFigures] = []
+    folders: dict = {}
+    for name in names:
+        knob = by_name[name]
+        for terrain in knob.terrains:
+            t0 = time.perf_counter()
+            folder = run_knob(knob, terrain, out, seconds, args.quick, args.reuse)
+            res = figures(knob, terrain, folder, biped, time.perf_counter() - t0)
+            folders[(name, terrain)] = folder
+            results.append(res)
+            sig = ", ".join(f"{n}@{t:.2f}" for n, t in res.first_signals[:4]) or "none"
+            print(f"{name:14s} {terrain:9s} {knob.speed:g} m/s  CoT {_f(res.cot)} "
+                  f"(elec {_f(res.cot_electrical)})  fell {res.fell} "
+                  f"{_f(res.fall_time_s)} {res.fall_reason}  first signals: {sig}  "
+                  f"[{res.wall_s:.0f} s]", flush=True)
+    pairs = {}
+    for name in names:          # paired with the reference run of the same speed
+        knob = by_name[name]
+        ref = next((n for n in names if n.startswith("base")
+                    and by_name[n].speed == knob.speed and (n, RIGID) in folders), None)
+        if ref is None:
+            continue
+        sand = folders.get((name, SAND), folders.get((ref, SAND)))
+        rigid = folders.get((name, RIGID), folders[(ref, RIGID)])
+        if sand is not None:
+            pairs[name] = pair_figures(sand, rigid)
+    extra = readings(folders[("base", SAND)], folders[("base", RIGID)])
+    if args.dataset:
+        extra["rigid_grf"] = rigid_grf_ablation(Path(args.dataset))
+    print(table(results, pairs))
+    print(json.dumps(extra, indent=1))
+    doc = {"command": " ".join(["python bench/paper_gaps.py", *(argv or sys.argv[1:])]),
+           "quick": bool(args.quick), "seconds": seconds,
+           "knobs": {k.name: dataclasses.asdict(k) for k in KNOBS if k.name in names},
+           "runs": [dataclasses.asdict(r) for r in results], "pairs": pairs,
+           "readings": extra,
+           "wall_s": sum(r.wall_s for r in results)}
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(doc, indent=1, default=str))
+    print(f"total wall time {doc['wall_s']:.0f} s", file=sys.stderr)
+    return doc
+
+
+if __name__ == "__main__":
+    main()
