@@ -5,13 +5,17 @@ rate) — no motion capture, no intrusion.
 The "lab log" is made here from a short simulated walk on sand (``granular-mpc synth``,
 the truth), written as a ROS 2 bag when the ``rosbags`` package is installed, else as CSV
 files; then ``import_log`` turns it into a checked data set with a mapping file, and the
-loaded data set reports which channels it carries and how its stance labels were derived.
+loaded data set reports which channels it carries and how its stance labels were derived;
+``validate`` and ``diagnose`` then run on it, on the measured channels only, and say
+which channels were not measured and which candidate effects cannot be assessed without
+them.
 
     python examples/import_lab_log.py          # GRANULAR_MPC_EXAMPLE_OUT=DIR to choose the folder
 """
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -23,6 +27,10 @@ from granular_mpc.importers.frames import foot_rotations
 from granular_mpc.robot import load_biped
 from granular_mpc.rotations import matrix_from_quat_wxyz
 from granular_mpc.validation import load_dataset
+from granular_mpc.validation.channel_coverage import Coverage
+from granular_mpc.validation.diagnose import diagnose
+from granular_mpc.validation.diagnosis.coverage import COVERAGE_FILE
+from granular_mpc.validation.replay import validate
 from granular_mpc.validation.synth import synthesize
 
 OUT = Path(os.environ.get("GRANULAR_MPC_EXAMPLE_OUT", "runs")) / "import_lab_log"
@@ -179,11 +187,23 @@ def main() -> None:
     print(f"max_joint_angle_error_rad: {q_err:.3g}")
     print(f"stance_agreement: {agree:.3f}")
 
-    # ---------------------------------------------------------------- validate / diagnose
-    # TODO(lead): once replay/diagnose read ``dataset.channels`` (issue 15, item 1), run
-    #   validate(res.path, ...) and diagnose(res.path, ...) here and print which channels
-    #   and effects could not be assessed without foot position, velocity and intrusion.
     print(f"data set: {res.path}")
+
+    # ---------------------------------------------------------------- validate / diagnose
+    # Only the measured channels are scored; the trunk position and velocity of each
+    # replay's start come from leg odometry (stance foot + IMU), docs/import.md.
+    val = validate(res.path, OUT / "validate", workers=1, n_boot=100, figures=False)
+    cov = val.report["coverage"]
+    print(f"validate: {val.report['n_stances']} stances, trunk state: {cov['trunk_state']}")
+    print(f"not_measured: {', '.join(cov['missing'])}")
+    print(f"not_scored: {', '.join(cov['not_scored_channels'])}")
+    for channel, rmse in val.report["overall_rmse"]["granular"].items():
+        print(f"  RMSE {channel}: {rmse:.3g} {val.report['units'][channel]}")
+    diag = diagnose(res.path, OUT / "diagnose", n_boot=50, workers=1, figures=False)
+    cannot = Coverage.from_dict(json.loads((OUT / "diagnose" / COVERAGE_FILE).read_text()))
+    print(f"diagnose: {diag.verdict.status} (added: {', '.join(diag.added) or 'nothing'})")
+    print(f"not_assessable: {', '.join(cannot.not_assessable) or '-'}")
+    print(f"report: {OUT / 'diagnose' / 'report.md'}")
 
 
 if __name__ == "__main__":

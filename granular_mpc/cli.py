@@ -485,6 +485,7 @@ def diagnose(
     seed: Annotated[int, typer.Option("--seed", help="Bootstrap seed.")] = 0,
     terrain: TerrainOpt = "dry_sand",
     effect_file: EffectFileOpt = None,
+    measurement: Annotated[bool, typer.Option("--measurement", help="Also test the measurement model: per-joint torque gain/offset, encoder offsets, force-sensor gain, torque time offset (granular_mpc.effects.measurement).")] = False,
     workers: WorkersOpt = None,
     debug: DebugOpt = False,
 ) -> None:
@@ -492,6 +493,9 @@ def diagnose(
     from .validation.diagnose import diagnose as run_diagnose
 
     with _errors(debug):
+        if measurement:
+            from .effects.measurement import register_measurement
+            register_measurement()
         _load_effect_files(effect_file)
         if candidate:
             for c in candidate:
@@ -524,19 +528,39 @@ def import_(
         print(f"wrote {res.path}")
 
 
+@app.command("drop-channels")
+def drop_channels_(
+    data_dir: Annotated[Path, typer.Argument(help="Data set to copy.")],
+    groups: Annotated[list[str], typer.Argument(help="Channel groups to remove (intrusion, foot_force, trunk_position, …).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder of the copy.")],
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a data set there.")] = False,
+    debug: DebugOpt = False,
+) -> None:
+    """Copy a data set without some channel groups (what a lab without those sensors has)."""
+    from .validation.dataformat import load_dataset
+    from .validation.dataformat.drop import drop_channels
+
+    with _errors(debug):
+        path = drop_channels(data_dir, out, groups, overwrite=overwrite)
+        print(load_dataset(path).channel_report())
+        print(f"wrote {path}")
+
+
 @app.command()
 def paper(
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder for paper_comparison.md, its figures and the runs.")],
     quick: Annotated[bool, typer.Option("--quick", help="Fewer, shorter runs (every row still filled; for tests).")] = False,
     workers: WorkersOpt = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace the runs of an earlier comparison in DIR.")] = False,
+    gaps: Annotated[Optional[Path], typer.Option("--gaps", help="Ablation figures (bench/paper_gaps.py --json) for the reasons; default: the shipped ones.")] = None,
     debug: DebugOpt = False,
 ) -> None:
     """Regenerate the comparison with the paper: DIR/paper_comparison.md (docs/paper.md)."""
     from .paper import paper_comparison
 
     with _errors(debug):
-        res = paper_comparison(out, quick=quick, workers=workers, overwrite=overwrite)
+        res = paper_comparison(out, quick=quick, workers=workers, overwrite=overwrite,
+                               gaps=gaps)
         print(f"{len(res.rows)} claims compared in {res.wall_time_s:.0f} s")
         print(f"wrote {res.table}")
 

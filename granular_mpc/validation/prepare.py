@@ -28,6 +28,14 @@ force. The other (trailing) foot is in contact when the previous run was its sta
 starts buried at its last measured intrusion, loaded with its last measured force, with
 its deepest depth and its time in stance from that run. Each foot gets its own free
 surface at its measured depth below its contact point (per-foot ``surface_height``).
+
+**Declared channels** (``Dataset.channels``): only measured groups are read and scored
+(:func:`channel_names`), an absent one is never replaced by zeros; without trunk position
+/ velocity they are estimated by leg odometry (:mod:`.estimation`), without intrusion the
+surface is a plane through the leading foot's touchdown point and every phase starts at a
+touchdown (with kinematic stance labels, re-estimated by :func:`~.estimation.landing`),
+without foot force a buried foot starts unloaded (``docs/import.md``). A replay needs
+:data:`REPLAY_REQUIRED`.
 """
 
 from __future__ import annotations
@@ -43,14 +51,45 @@ import pinocchio as pin
 from ..columns import (AXES, BASE_ANGULAR_VELOCITY, BASE_LINEAR_VELOCITY, BASE_POSITION,
                        BASE_QUATERNION, GRF_COLUMNS, INTRUSION_COLUMNS, STANCE, TIME,
                        format_columns, joint_columns)
+from ..exceptions import DataFormatError, DataProblem
 from ..robot.model import SIDES, Biped
 from ..rotations import matrix_from_quat_wxyz
 from .dataformat import Dataset, stance_phases
+from .dataformat.channels import ChannelGroup, ChannelSet
+from .estimation import contact_offsets, estimate_trunk, landing
+from .foot_geometry import foot_pitch, patch_points
+
+#: the channel groups a replay cannot do without (initial state and inputs)
+REPLAY_REQUIRED = (ChannelGroup.JOINT_ANGLES, ChannelGroup.JOINT_TORQUES,
+                   ChannelGroup.TRUNK_ORIENTATION, ChannelGroup.TRUNK_ANGULAR_VELOCITY)
+
+#: scored channel groups (the replay predicts them), in channel order
+SCORED_GROUPS = (ChannelGroup.JOINT_ANGLES, ChannelGroup.FOOT_FORCE, ChannelGroup.INTRUSION)
 
 
-def channel_names(joint_names: Sequence[str]) -> list[str]:
-    """Scored channels (format-v1 names): each joint angle, GRF x/y/z, intrusion x/y/z."""
-    return joint_columns(joint_names, "q") + list(GRF_COLUMNS) + list(INTRUSION_COLUMNS)
+def channel_names(joint_names: Sequence[str], channels: ChannelSet | None = None) -> list[str]:
+    """Scored channels (format-v1 names): each joint angle, GRF x/y/z, intrusion x/y/z —
+    those of the measured groups of ``channels`` (default: all)."""
+    ch = ChannelSet.all() if channels is None else channels
+    out: list[str] = []
+    for g in SCORED_GROUPS:
+        if ch.has(g):
+            out += list(g.columns(joint_names))
+    return out
+
+
+def check_replayable(ds: Dataset) -> None:
+    """Raise if ``ds`` lacks a group a replay needs (:data:`REPLAY_REQUIRED`).
+
+    Raises:
+        DataFormatError: naming the missing groups and their columns.
+    """
+    missing = [g for g in REPLAY_REQUIRED if not ds.has(g)]
+    if missing:
+        raise DataFormatError([DataProblem(
+            str(ds.path / "meta.yaml"), f"a replay needs the channel group '{g.value}' "
+            f"({', '.join(g.columns(ds.joint_names))}), which this data set does not declare",
+            "channels") for g in missing])
 
 
 CHANNEL_UNITS = {"q": "rad", "grf": "N", "intrusion": "m"}
@@ -152,57 +191,74 @@ def _savgol(x: np.ndarray, window: int, deriv: int = 0, delta: float = 1.0) -> n
     return savgol_filter(x, w, poly, deriv=deriv, delta=delta, axis=0, mode="interp")
 
 
-def patch_points(biped: Biped, oMf: pin.SE3) -> np.ndarray:
-    """Lowest sole point of each slice (patch) of a foot at placement ``oMf`` [m] (W),
-    shape (n_slices, 3) — the float twin of :func:`granular_mpc.terrain.contact.slice_geometry`."""
-    foot = biped.config.foot
-    R = oMf.rotation
-    e_x, e_y, e_z = R[:, 0], R[:, 1], R[:, 2]
-    psi_low = math.atan2(-e_x[2], e_z[2])
-    psi = min(max(psi_low, -foot.half_angle), foot.half_angle)
-    base = oMf.translation + foot.radius * math.sin(psi) * e_x - foot.radius * math.cos(psi) * e_z
-    return np.array([base + y * e_y for y in biped.slice_offsets])
-
-
-def foot_pitch(oMf: pin.SE3) -> float:
-    """ψ_c: angle from world-down to the foot's −z axis, positive toward its heading [rad]."""
-    R = oMf.rotation
-    return -math.atan2(-R[2, 0], R[2, 2])
-
-
 class TrialStates:
-    """Smoothed state estimates of one trial (arrays over its rows)."""
+    """Smoothed state estimates of one trial (arrays over its rows).
+
+    Channels of groups that ``channels`` does not hold are not read: ``dqa_meas`` is
+    None without joint velocities, ``grf``/``grf_s`` without foot force and
+    ``intr``/``intr_s``/``dintr_s`` without intrusion; the trunk position and velocity are
+    then estimated (``trunk_source``: ``"measured"``, ``"velocity from position"`` or
+    ``"leg odometry"``).
+    """
 
     def __init__(self, biped: Biped, df: pd.DataFrame, joint_names: Sequence[str],
-                 fs: float, window: int = 15, contact_window: int = 9) -> None:
+                 fs: float, window: int = 15, contact_window: int = 9,
+                 channels: ChannelSet | None = None, refine_touchdowns: bool = False) -> None:
+        ch = ChannelSet.all() if channels is None else channels
+        self.channels = ch
         self.n = len(df)
         J = list(joint_names)
         dt = 1.0 / fs
         qa = df[joint_columns(J, "q")].to_numpy(dtype=float)
         self.qa_raw = qa
-        self.dqa_meas = df[joint_columns(J, "dq")].to_numpy(dtype=float)
+        self.dqa_meas = (df[joint_columns(J, "dq")].to_numpy(dtype=float)
+                         if ch.has(ChannelGroup.JOINT_VELOCITIES) else None)
         self.window = window
         self.dt = dt
         self.qa = _savgol(qa, window)
         self.dqa = _savgol(qa, window, deriv=1, delta=dt)
         self.tau = df[joint_columns(J, "tau")].to_numpy(dtype=float)
-        self.p_raw = df[list(BASE_POSITION)].to_numpy(dtype=float)
-        self.p = _savgol(self.p_raw, window)
         quat = df[list(BASE_QUATERNION)].to_numpy(dtype=float)
         quat = quat * np.sign(quat[:, :1] + (quat[:, :1] == 0))
         self.quat_raw = quat / np.linalg.norm(quat, axis=1, keepdims=True)
         quat = _savgol(quat, window)
         self.quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)     # w x y z
-        self.v_W = _savgol(df[list(BASE_LINEAR_VELOCITY)].to_numpy(dtype=float), window)
         self.w_B = _savgol(df[list(BASE_ANGULAR_VELOCITY)].to_numpy(dtype=float), window)
         self.time = df[TIME].to_numpy(dtype=float)
         self.labels = df[STANCE].astype(str).to_numpy()
-        self.grf = df[list(GRF_COLUMNS)].to_numpy(dtype=float)
-        self.intr = df[list(INTRUSION_COLUMNS)].to_numpy(dtype=float)
+        self.biped = biped
+        self.phases = stance_phases(df, sides=("left", "right"))
+        # each stance phase's first row (and the row whose contact height is the free
+        # surface, None: from intrusion); kinematic labels: from the leg kinematics
+        self.starts = [ph.row_start for ph in self.phases]
+        self.surface_rows: list[int | None] = [None] * len(self.phases)
+        if refine_touchdowns:
+            self._landings(fs)
+        has_p, has_v = ch.has(ChannelGroup.TRUNK_POSITION), ch.has(ChannelGroup.TRUNK_LINEAR_VELOCITY)
+        if has_p:
+            self.p_raw = df[list(BASE_POSITION)].to_numpy(dtype=float)
+            self.trunk_source = "measured" if has_v else "velocity from position"
+        else:
+            est = estimate_trunk(biped, self.quat, self.qa, self.anchor_labels(), fs, dq_a=self.dqa,
+                                 w_B=self.w_B, smooth_window=window)
+            self.p_raw = est.position
+            self.trunk_source = "leg odometry"
+        self.p = _savgol(self.p_raw, window)
+        if has_v:
+            self.v_W = _savgol(df[list(BASE_LINEAR_VELOCITY)].to_numpy(dtype=float), window)
+        elif has_p:
+            self.v_W = _savgol(self.p_raw, window, deriv=1, delta=dt)
+        else:
+            self.v_W = est.velocity
+        self.has_force = ch.has(ChannelGroup.FOOT_FORCE)
+        self.has_intrusion = ch.has(ChannelGroup.INTRUSION)
+        self.grf = df[list(GRF_COLUMNS)].to_numpy(dtype=float) if self.has_force else None
+        self.intr = (df[list(INTRUSION_COLUMNS)].to_numpy(dtype=float)
+                     if self.has_intrusion else None)
         # within-run smoothing of the stance-foot channels
-        self.grf_s = np.zeros_like(self.grf)
-        self.intr_s = np.zeros_like(self.intr)
-        self.dintr_s = np.zeros_like(self.intr)
+        self.grf_s = np.zeros_like(self.grf) if self.has_force else None
+        self.intr_s = np.zeros_like(self.intr) if self.has_intrusion else None
+        self.dintr_s = np.zeros_like(self.intr) if self.has_intrusion else None
         change = np.flatnonzero(self.labels[1:] != self.labels[:-1]) + 1
         starts, stops = np.r_[0, change], np.r_[change, self.n]
         self.runs = list(zip(starts.tolist(), stops.tolist()))
@@ -210,10 +266,44 @@ class TrialStates:
             if self.labels[a] == "none":
                 continue
             cw = contact_window          # the foot sinks within ≈ 20 ms: a shorter window
-            self.grf_s[a:b] = _savgol(self.grf[a:b], cw)
-            self.intr_s[a:b] = _savgol(self.intr[a:b], cw)
-            self.dintr_s[a:b] = _savgol(self.intr[a:b], cw, deriv=1, delta=dt)
-        self.biped = biped
+            if self.has_force:
+                self.grf_s[a:b] = _savgol(self.grf[a:b], cw)
+            if self.has_intrusion:
+                self.intr_s[a:b] = _savgol(self.intr[a:b], cw)
+                self.dintr_s[a:b] = _savgol(self.intr[a:b], cw, deriv=1, delta=dt)
+
+    def _landings(self, fs: float) -> None:
+        """Each stance phase's first row and surface row from the leg kinematics
+        (:func:`~.estimation.landing`) instead of its label change."""
+        h = self.foot_heights()
+        for n, ph in enumerate(self.phases):
+            if ph.row_start <= 1:
+                continue
+            other = SIDES[1 - SIDES.index(ph.side)]
+            ld = landing(h[ph.side] - h[other], ph.row_start, fs)
+            self.starts[n] = min(max(ld.start, 1), ph.row_stop - 3)
+            self.surface_rows[n] = min(max(ld.stop, self.starts[n]), ph.row_stop - 1)
+
+    def anchor_labels(self) -> np.ndarray:
+        """The stance labels with each phase starting where its foot has stopped on the
+        ground (``surface_rows``; else its row in ``starts``): the previous stance foot
+        is the anchor until then."""
+        lab = self.labels.copy()
+        rows = [s if s is not None else a for a, s in zip(self.starts, self.surface_rows)]
+        for ph, a in zip(self.phases, rows):
+            if a < ph.row_start:
+                lab[a:ph.row_start] = ph.side
+            elif a > ph.row_start:
+                lab[ph.row_start:a] = SIDES[1 - SIDES.index(ph.side)]
+        return lab
+
+    def foot_heights(self) -> dict[str, np.ndarray]:
+        """Each foot's contact-point height relative to the trunk origin in W per row [m]
+        (leg kinematics and trunk orientation only; computed once)."""
+        if not hasattr(self, "_heights"):
+            self._heights = {s: contact_offsets(self.biped, self.quat_raw, self.qa_raw, s)[0][:, 2]
+                             for s in SIDES}
+        return self._heights
 
     def past_fit(self, k: int, cols: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
         """Angle and rate of joints ``cols`` at row ``k`` from a quadratic fit to the rows
@@ -294,6 +384,40 @@ def _foot_kinematics(biped: Biped, data: pin.Data, st: "TrialStates", side: str,
             "v_h": v_h, "v_l": v_l, "heading_x": head[:, 0], "heading_y": head[:, 1]}
 
 
+def _contact_points(biped: Biped, data: pin.Data, st: "TrialStates", side: str, a: int,
+                    b: int) -> np.ndarray:
+    """The foot's contact point (mean over patches) in W per row of [a, b) [m], (n, 3)."""
+    out = np.empty((b - a, 3))
+    for k in range(a, b):
+        pin.framesForwardKinematics(biped.model, data, st.q(k))
+        out[k - a] = patch_points(biped, data.oMf[biped.foot_frame[side]]).mean(axis=0)
+    return out
+
+
+def _stance_channels(st: "TrialStates", biped: Biped, data: pin.Data, side: str, r0: int,
+                     b: int, surface_W: float, touchdown_xy: np.ndarray, smooth: int,
+                     fs: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """Stance-foot intrusion (smoothed) and its rate over rows [r0, b) [m, m/s], the
+    vertical load [N] for the localisation features, and where they come from: the
+    measured channels, else the foot's kinematic displacement since touchdown and the
+    whole-body load estimate m (g + z̈_B)."""
+    if st.has_intrusion:
+        intr, dintr, src = st.intr_s[r0:b], st.dintr_s[r0:b], "measured"
+    else:
+        pts = _contact_points(biped, data, st, side, r0, b)
+        intr = np.column_stack([pts[:, 0] - touchdown_xy[0], pts[:, 1] - touchdown_xy[1],
+                                surface_W - pts[:, 2]])
+        dintr = _savgol(intr, min(smooth, 9), deriv=1, delta=1.0 / fs)
+        src = "kinematic"
+    if st.has_force:
+        load = st.grf_s[r0:b, 2].copy()
+    else:
+        mass = float(sum(i.mass for i in biped.model.inertias))
+        acc = _savgol(st.p_raw, st.window, deriv=2, delta=st.dt)[r0:b, 2]
+        load = mass * (9.81 + acc)
+    return intr, dintr, load, src
+
+
 def stance_windows(ds: Dataset, biped: Biped, *, contact_stiffness: float = 2.0e5,
                    smooth_window: int = 15, min_samples: int = 20,
                    touchdown_depth: float = 3e-3) -> list[StanceWindow]:
@@ -305,115 +429,162 @@ def stance_windows(ds: Dataset, biped: Biped, *, contact_stiffness: float = 2.0e
     angles and rates there come from a fit to the samples *before* the impact, and its
     free surface from the mean of (contact-point height + measured intrusion) over the
     first samples of the phase. Otherwise (labels that start mid-stance) the window
-    starts at the first sample with the foot buried at its measured intrusion.
+    starts at the first sample with the foot buried at its measured intrusion. Without
+    measured intrusion every phase starts at its touchdown (module docstring).
 
     Args:
-        ds: the data set.
+        ds: the data set (only its measured channel groups are read).
         biped: the robot model of ``ds.meta.robot``.
         contact_stiffness: K per patch of the model terrain (the elastic displacement of a
             loaded foot is −F/(n K)) [N/m].
         smooth_window: Savitzky–Golay window [samples].
         min_samples: shorter stance runs are skipped (contact flicker).
         touchdown_depth: see above [m].
+
+    Raises:
+        DataFormatError: the data set lacks a group a replay needs (:func:`check_replayable`).
     """
+    check_replayable(ds)
     fs = ds.meta.sample_rate_hz
     data = biped.create_data()
     out: list[StanceWindow] = []
     J = list(ds.joint_names)
+    scored = channel_names(J, ds.channels)
+    refine = ds.stance_source == "kinematics"      # late label changes on sand
     for trial, df in ds.trials.items():
-        st = TrialStates(biped, df, J, fs, smooth_window)
+        st = TrialStates(biped, df, J, fs, smooth_window, channels=ds.channels,
+                         refine_touchdowns=refine)
         speed = ds.commanded_speed(trial)
-        for ph in stance_phases(df, trial=trial, sides=("left", "right")):
+        phases, starts = st.phases, st.starts
+        for n_ph, ph in enumerate(phases):
             if not ph.complete or ph.n_rows < min_samples:
                 continue
-            a, b = ph.row_start, ph.row_stop
-            side = ph.side
-            i = SIDES.index(side)
-            other = SIDES[1 - i]
-            leg = [k for k, j in enumerate(J) if j.startswith(side + "_")]
-            touchdown = float(np.median(st.intr[a:a + 3, 2])) < touchdown_depth
-            k0 = a - 1 if touchdown else a
-            qa0, dqa0 = st.qa[k0].copy(), st.dqa[k0].copy()
-            if touchdown and leg:
-                # the swing leg decelerates hard before touchdown: angles from a fit to the
-                # samples up to k0, rates as measured at k0 (no smoothing across the impact)
-                qa0[leg] = st.past_fit(k0, leg)[0]
-                dqa0[leg] = st.dqa_meas[k0, leg]
-            q0 = st.q(k0, qa0)
-            v0 = st.v(k0, dqa0)
-            pin.framesForwardKinematics(biped.model, data, q0)
-            c_W = patch_points(biped, data.oMf[biped.foot_frame[side]]).mean(axis=0)
-            if touchdown:
-                m = min(15, b - a)
-                heights = []
-                for k in range(a, a + m):
-                    pin.framesForwardKinematics(biped.model, data, st.q_raw(k))
-                    pts = patch_points(biped, data.oMf[biped.foot_frame[side]])
-                    heights.append(pts[:, 2].mean() + st.intr[k, 2])
-                surface_W = float(np.mean(heights))
-                pin.framesForwardKinematics(biped.model, data, q0)
-            else:
-                surface_W = float(c_W[2] + max(st.intr_s[a, 2], 0.0))
-            origin = np.array([c_W[0], c_W[1], surface_W])
-            lead_depth = surface_W - c_W[2]
-            if touchdown:
-                lead = _foot_init(biped, data, side, depth=lead_depth, intrusion=np.zeros(3),
-                                  force=np.zeros(3), in_contact=False, depth_max=0.0,
-                                  t_stance=0.0, K=contact_stiffness, origin=origin)
-            else:
-                lead = _foot_init(biped, data, side, depth=lead_depth, intrusion=st.intr_s[a],
-                                  force=st.grf_s[a], in_contact=True,
-                                  depth_max=float(st.intr_s[a, 2]), t_stance=0.0,
-                                  K=contact_stiffness, origin=origin)
-            # the trailing foot: in contact if the run before the phase was its stance
-            if a > 0 and st.labels[a - 1] == other:
-                pa, pb = st.run_of(a - 1)
-                trail = _foot_init(biped, data, other, depth=float(st.intr_s[a - 1, 2]),
-                                   intrusion=st.intr_s[a - 1], force=st.grf_s[a - 1],
-                                   in_contact=True,
-                                   depth_max=float(st.intr_s[pa:pb, 2].max()),
-                                   t_stance=float(st.time[a - 1] - st.time[pa]),
-                                   K=contact_stiffness, origin=origin)
-            else:
-                trail = _foot_init(biped, data, other, depth=0.0, intrusion=np.zeros(3),
-                                   force=np.zeros(3), in_contact=False, depth_max=0.0,
-                                   t_stance=0.0, K=contact_stiffness, origin=origin)
-            feet = [None, None]
-            feet[i], feet[1 - i] = lead, trail
-            q_loc = q0.copy()
-            q_loc[0:3] -= origin
-            r0 = k0 + 1                           # first predicted (scored) row
-            t_ph = st.time[a:b]
-            t = st.time[r0:b] - st.time[a]
-            meas = {c: df[c].to_numpy(dtype=float)[r0:b] for c in joint_columns(J, "q")}
-            for k, (g, i_) in enumerate(zip(GRF_COLUMNS, INTRUSION_COLUMNS)):
-                meas[g] = st.grf[r0:b, k].copy()
-                meas[i_] = st.intr[r0:b, k].copy()
-            kin = _foot_kinematics(biped, data, st, side, r0, b)
-            pin.framesForwardKinematics(biped.model, data, q0)
-            depth = st.intr_s[r0:b, 2]
-            feats = {
-                "depth": depth.copy(),
-                "sink_velocity": st.dintr_s[r0:b, 2].copy(),
-                "rise_from_deepest": np.maximum.accumulate(depth) - depth,
-                "slip_velocity": np.hypot(st.dintr_s[r0:b, 0], st.dintr_s[r0:b, 1]),
-                "sink_acceleration": _savgol(st.dintr_s[r0:b, 2], smooth_window, 1, 1.0 / fs),
-                "grf_z": st.grf_s[r0:b, 2].copy(),
-                "time_in_stance": t.copy(),
-                "joint_speed": np.abs(st.dqa[r0:b]).mean(axis=1),
-                "trunk_speed": np.linalg.norm(st.v_W[r0:b], axis=1),
-                "x_position": st.p[r0:b, 0].copy(),
-                **kin,
-            }
-            out.append(StanceWindow(
-                index=len(out), trial=trial, speed=float(speed), side=side, foot=i,
-                row_start=r0, row_stop=b, time=t,
-                phase=100.0 * t / max(t_ph[-1] - t_ph[0], 1e-9),
-                q0=q_loc, v0=v0, tau=st.tau[k0:b - 1].copy(), feet=tuple(feet), origin=origin,
-                touchdown_W=np.array([c_W[0], c_W[1], surface_W]), meas=meas, features=feats,
-                columns={c: df[c].to_numpy(dtype=float)[r0:b] for c in format_columns(J)
-                         if c != STANCE and c in df.columns}))
+            # a phase ends where the next one starts (its kinematic touchdown)
+            stop = (starts[n_ph + 1] if n_ph + 1 < len(phases)
+                    and phases[n_ph + 1].row_start == ph.row_stop else ph.row_stop)
+            out.append(_window(len(out), st, df, biped, data, ph._replace(trial=trial), J,
+                               scored, float(speed),
+                               contact_stiffness, smooth_window, touchdown_depth, fs,
+                               starts[n_ph], stop, st.surface_rows[n_ph]))
     return out
+
+
+def _window(index: int, st: TrialStates, df: pd.DataFrame, biped: Biped, data: pin.Data,
+            ph, J: list, scored: list, speed: float, contact_stiffness: float,
+            smooth_window: int, touchdown_depth: float, fs: float,
+            start: int, stop: int, surface_row: int | None = None) -> StanceWindow:
+    """One stance phase as a :class:`StanceWindow` (see :func:`stance_windows`), over the
+    rows [start, stop) (the phase's rows, or its kinematic touchdown to the next one's)."""
+    a, b = start, stop
+    a_label = ph.row_start
+    side = ph.side
+    i = SIDES.index(side)
+    other = SIDES[1 - i]
+    leg = [k for k, j in enumerate(J) if j.startswith(side + "_")]
+    touchdown = (not st.has_intrusion
+                 or float(np.median(st.intr[a:a + 3, 2])) < touchdown_depth)
+    k0 = a - 1 if touchdown else a
+    qa0, dqa0 = st.qa[k0].copy(), st.dqa[k0].copy()
+    if touchdown and leg:
+        # the swing leg decelerates hard before touchdown: angles from a fit to the
+        # samples up to k0, rates as measured at k0 (no smoothing across the impact)
+        qa0[leg], fit_rate = st.past_fit(k0, leg)
+        dqa0[leg] = st.dqa_meas[k0, leg] if st.dqa_meas is not None else fit_rate
+    q0 = st.q(k0, qa0)
+    v0 = st.v(k0, dqa0)
+    pin.framesForwardKinematics(biped.model, data, q0)
+    c_W = patch_points(biped, data.oMf[biped.foot_frame[side]]).mean(axis=0)
+    if touchdown and st.has_intrusion:
+        m = min(15, b - a)
+        heights = []
+        for k in range(a, a + m):
+            pin.framesForwardKinematics(biped.model, data, st.q_raw(k))
+            pts = patch_points(biped, data.oMf[biped.foot_frame[side]])
+            heights.append(pts[:, 2].mean() + st.intr[k, 2])
+        surface_W = float(np.mean(heights))
+        pin.framesForwardKinematics(biped.model, data, q0)
+    elif touchdown:
+        # no intrusion: the contact point is on the surface at the first stance sample,
+        # or (kinematic labels) where the landing foot stops, averaged over 3 samples
+        r_s = a if surface_row is None else surface_row
+        heights = []
+        for k in range(max(r_s - 1, 0), min(r_s + 2, st.n)) if surface_row is not None else (a,):
+            pin.framesForwardKinematics(biped.model, data, st.q_raw(k))
+            heights.append(patch_points(biped, data.oMf[biped.foot_frame[side]])[:, 2].mean())
+        surface_W = float(np.mean(heights))
+        pin.framesForwardKinematics(biped.model, data, q0)
+    else:
+        surface_W = float(c_W[2] + max(st.intr_s[a, 2], 0.0))
+    origin = np.array([c_W[0], c_W[1], surface_W])
+    lead_depth = surface_W - c_W[2]
+    K = contact_stiffness
+    if touchdown:
+        lead = _foot_init(biped, data, side, depth=lead_depth, intrusion=np.zeros(3),
+                          force=np.zeros(3), in_contact=False, depth_max=0.0,
+                          t_stance=0.0, K=K, origin=origin)
+    else:
+        lead = _foot_init(biped, data, side, depth=lead_depth, intrusion=st.intr_s[a],
+                          force=st.grf_s[a] if st.has_force else np.zeros(3), in_contact=True,
+                          depth_max=float(st.intr_s[a, 2]), t_stance=0.0, K=K, origin=origin)
+    # the trailing foot: in contact if the run before the phase was its stance
+    if a_label > 0 and st.labels[a_label - 1] == other:
+        pa, pb = st.run_of(a_label - 1)
+        kt = min(a, pb) - 1                       # its last sample before the window
+        force = st.grf_s[kt] if st.has_force else np.zeros(3)
+        if st.has_intrusion:
+            trail = _foot_init(biped, data, other, depth=float(st.intr_s[kt, 2]),
+                               intrusion=st.intr_s[kt], force=force, in_contact=True,
+                               depth_max=float(st.intr_s[pa:pb, 2].max()),
+                               t_stance=float(st.time[kt] - st.time[pa]), K=K,
+                               origin=origin)
+        else:
+            # one flat surface through the leading foot's touchdown point; the trailing
+            # foot at its kinematic depth below it, at its deepest point
+            z_t = patch_points(biped, data.oMf[biped.foot_frame[other]])[:, 2].mean()
+            depth = float(surface_W - z_t)
+            trail = _foot_init(biped, data, other, depth=depth, intrusion=np.zeros(3),
+                               force=force, in_contact=depth > 0.0,
+                               depth_max=max(depth, 0.0),
+                               t_stance=float(st.time[kt] - st.time[pa]), K=K,
+                               origin=origin)
+    else:
+        trail = _foot_init(biped, data, other, depth=0.0, intrusion=np.zeros(3),
+                           force=np.zeros(3), in_contact=False, depth_max=0.0,
+                           t_stance=0.0, K=K, origin=origin)
+    feet = [None, None]
+    feet[i], feet[1 - i] = lead, trail
+    q_loc = q0.copy()
+    q_loc[0:3] -= origin
+    r0 = k0 + 1                           # first predicted (scored) row
+    t_ph = st.time[a:b]
+    t = st.time[r0:b] - st.time[a]
+    meas = {c: df[c].to_numpy(dtype=float)[r0:b] for c in scored}
+    kin = _foot_kinematics(biped, data, st, side, r0, b)
+    intr, dintr, load, _ = _stance_channels(st, biped, data, side, r0, b, surface_W,
+                                            c_W[:2], smooth_window, fs)
+    pin.framesForwardKinematics(biped.model, data, q0)
+    depth = intr[:, 2]
+    feats = {
+        "depth": depth.copy(),
+        "sink_velocity": dintr[:, 2].copy(),
+        "rise_from_deepest": np.maximum.accumulate(depth) - depth,
+        "slip_velocity": np.hypot(dintr[:, 0], dintr[:, 1]),
+        "sink_acceleration": _savgol(dintr[:, 2], smooth_window, 1, 1.0 / fs),
+        "grf_z": load,
+        "time_in_stance": t.copy(),
+        "joint_speed": np.abs(st.dqa[r0:b]).mean(axis=1),
+        "trunk_speed": np.linalg.norm(st.v_W[r0:b], axis=1),
+        "x_position": st.p[r0:b, 0].copy(),
+        **kin,
+    }
+    return StanceWindow(
+        index=index, trial=ph.trial, speed=speed, side=side, foot=i,
+        row_start=r0, row_stop=b, time=t,
+        phase=100.0 * t / max(t_ph[-1] - t_ph[0], 1e-9),
+        q0=q_loc, v0=v0, tau=st.tau[k0:b - 1].copy(), feet=tuple(feet), origin=origin,
+        touchdown_W=np.array([c_W[0], c_W[1], surface_W]), meas=meas, features=feats,
+        columns={c: df[c].to_numpy(dtype=float)[r0:b] for c in format_columns(J)
+                 if c != STANCE and c in df.columns})
 
 
 def windows_frame(windows: Sequence[StanceWindow], values: Sequence[dict] | None = None,
@@ -435,4 +606,5 @@ def windows_frame(windows: Sequence[StanceWindow], values: Sequence[dict] | None
 
 
 __all__ = ["StanceWindow", "FootInit", "TrialStates", "stance_windows", "windows_frame",
-           "channel_names", "channel_unit", "patch_points", "foot_pitch", "AXES"]
+           "channel_names", "channel_unit", "check_replayable", "patch_points", "foot_pitch",
+           "AXES", "REPLAY_REQUIRED", "SCORED_GROUPS"]

@@ -50,6 +50,7 @@ from ...columns import (BASE_ANGULAR_VELOCITY, BASE_COLUMNS, BASE_LINEAR_VELOCIT
                         STANCE_LABELS, format_columns, joint_columns)
 from .channels import ChannelGroup, ChannelSet, group_of_column
 from .dataset import Dataset, StancePhase, stance_phases
+from .drop import drop_channels
 from .load import check_dataset, load_dataset
 from .meta import SCHEMA_VERSION, SUFFIXES, DatasetMeta, GeneratorMeta, TrialMeta, TrialName
 from .stance_derive import StanceDerivation, StanceSource, derive_stance
@@ -62,7 +63,7 @@ __all__ = [
     "Dataset", "StancePhase", "stance_phases", "format_columns", "joint_columns",
     "load_dataset", "check_dataset", "check_trials", "write_dataset",
     "ChannelGroup", "ChannelSet", "group_of_column", "StanceDerivation", "StanceSource",
-    "derive_stance",
+    "derive_stance", "drop_channels",
     # also importable from here, as before the split
     "SUFFIXES", "TrialName", "JOINT_PREFIXES", "BASE_POSITION", "BASE_QUATERNION",
     "BASE_LINEAR_VELOCITY", "BASE_ANGULAR_VELOCITY",

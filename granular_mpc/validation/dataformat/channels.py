@@ -21,7 +21,7 @@ group                      columns                                     unit, fra
 =========================  ==========================================  ===========
 
 Replay and diagnosis ask ``dataset.has(ChannelGroup.FOOT_FORCE)`` rather than looking
-for columns.
+for columns. A copy of a data set without some groups: :func:`.drop.drop_channels`.
 """
 
 from __future__ import annotations

@@ -20,8 +20,12 @@ from ..dataformat import load_dataset
 from ..replay.pool import ReplayPool
 from .calibration import calibrate_model
 from .candidates import build_candidates, check_sensor_candidates, drop_dead_candidates
+from .coverage import (assess_candidates, calibration_text, can_calibrate,
+                       drop_unreadable_sensor_candidates, fixed_calibration, measured_problem,
+                       write_coverage)
 from .localise import localise_models, where_summary
 from .problem import load_problem
+from .proposal import pointed_proposal, propose_terms
 from .refine import refine
 from .report import figures as make_figures
 from .report import write_outputs
@@ -77,17 +81,29 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     out = make_output_folder(out_dir) if out_dir is not None else None
     cands = build_candidates(candidates)
     problem = load_problem(data_dir, terrain=terrain, sim=sim, phase_bins=phase_bins, dataset=ds)
+    # declared channels (coverage.py): score the measured ones; sensor candidates reading
+    # an unmeasured column cannot be assessed
+    problem = measured_problem(problem, ds)
+    cands, unreadable = drop_unreadable_sensor_candidates(cands, problem.windows[0],
+                                                          problem.joint_names, ds)
     # every sensor candidate tried on the data's columns before any replay
     cands = check_sensor_candidates(cands, problem.windows[0], problem.joint_names)
     timing["prepare"] = _time.perf_counter() - t_start
 
     t0 = _time.perf_counter()
-    cal = calibrate_model(problem, cands, params=calibrate_params, seed=seed)
+    cal = (calibrate_model(problem, cands, params=calibrate_params, seed=seed)
+           if can_calibrate(ds) else fixed_calibration(problem, cands, calibrate_params,
+                                                       intrusion=ds.has("intrusion")))
     timing["calibrate"] = _time.perf_counter() - t0
+    # a term outside the library, from the force equation error (proposal.py)
+    proposal = propose_terms(problem, cal.theta, seed=seed) if can_calibrate(ds) else None
     with ReplayPool(cal.replay_model, problem.windows, workers=workers) as pool:
         t0 = _time.perf_counter()
         res = compute_residuals(problem, cands, cal, pool)
         cands, warns = drop_dead_candidates(cands, res.sens, problem.channels)
+        cands, coverage = assess_candidates(problem, ds, cands, res, unreadable,
+                                            calibration_text(ds))
+        warns = tuple(warns) + coverage.warnings
         timing["replays"] = _time.perf_counter() - t0
         t0 = _time.perf_counter()
         sd = screening_design(problem, cands, cal.nuisance, res, seed=seed)
@@ -109,6 +125,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     vin = VerdictInputs(ref.selected, ref.ranking, ref.refined_heldout, loc.after, loc.before,
                         ref.acceptance, scr.indistinguishable)
     verdict = decide(vin)
+    best = best_candidate_statement(vin)
+    verdict, proposal = pointed_proposal(verdict, best, proposal, out, str(data_dir))
     reg = scr.regression
     design = DesignSummary(
         len(problem.windows), problem.n_trials, problem.channels, phase_bins, int(reg.y.size),
@@ -129,12 +147,13 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
                            loc.after.n_significant_cells, loc.before.n_major_cells,
                            loc.after.n_major_cells),
         design, Recommended.for_fit(theta, ref.fitted), timing, (), warns, ref.acceptance,
-        best_candidate_statement(vin), out)
+        best, out, proposal)
     if out is None:
         return diag
     figs = (make_figures(out, loc.before, loc.after, ref.ranking, problem.channels,
                          problem.edges, res.R, loc.R_after, ref.selected) if figures else [])
     diag = replace(diag, figures=tuple(p.name for p in figs))
+    write_coverage(out, coverage)                # read by the report's channel section
     write_outputs(diag, figs)
     return diag
 

@@ -12,7 +12,9 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..prepare import channel_unit
+from .coverage import coverage_section
 from .localization_records import Localization
+from .proposal_records import Proposal
 from .ranking_records import Ranked
 from .result import DIAGNOSIS_FILE, REPORT_FILE, Diagnosis
 from .thresholds import MIN_HELDOUT_REDUCTION, T_CELL
@@ -137,6 +139,28 @@ def coefficient_text(r: Ranked) -> str:
     return f"{main}: refined value {refined:.4g}{unit}; {screening}"
 
 
+def proposal_section(p: Proposal | None) -> list[str]:
+    """The report's lines on the proposed term (empty when none was fitted)."""
+    if p is None:
+        return []
+    lines = ["", "## A term outside the library (proposed from the foot-force equation error)", ""]
+    lines += [f"* axis {a.axis}: held-out equation error −{100 * a.heldout_error_reduction_selected:.0f} % "
+              f"(selection redone per fold −{100 * a.heldout_error_reduction:.0f} %), RMS "
+              f"{a.rms_before:.2f} → {a.rms_after:.2f} N{'' if a.proposed else ' — nothing proposed'}"
+              for a in p.axes]
+    if not p.terms:
+        return lines + [f"* nothing proposed ({p.n_samples} sinking samples)"]
+    lines += ["", "| axis | feature | coefficient (foot) | per patch | selected in |",
+              "|---|---|---|---|---|"]
+    lines += [f"| {t.axis} | {t.feature}: {t.description} | {t.coefficient_foot:.4g} ± "
+              f"{t.std_error:.2g} {t.unit} | {t.coefficient_patch:.4g} | "
+              f"{100 * t.selection_frequency:.0f} % |" for t in p.terms]
+    if p.file:
+        lines += ["", f"Effect file: `{p.file}` — a hypothesis, not added; pass it back with "
+                      f"`--effect-file {p.file}` to have it refitted and judged."]
+    return lines
+
+
 def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
     """The one-page ``report.md``."""
     v = d.verdict
@@ -147,6 +171,7 @@ def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
         lines += [f"**Best candidate:** {d.best_candidate}", ""]
     if d.warnings:
         lines += ["**Warnings:**", ""] + [f"* {w}" for w in d.warnings] + [""]
+    lines += coverage_section(d.out_dir)       # measured / missing channels (coverage.py)
     lines += ["## Calibration (own parameters)", "",
               "| parameter | before | equation error | 95 % CI (Gauss–Newton) "
               "| 95 % CI (trial bootstrap) | after replay refit |",
@@ -181,6 +206,7 @@ def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
         for g in d.indistinguishable:
             lines.append(f"* {' vs '.join(g.effects)} (correlation {g.correlation:.2f}): "
                          f"{g.experiment}")
+    lines += proposal_section(d.proposal)       # a term outside the library (proposal.py)
     loc = d.localization
     lines += ["", "## Where the calibrated model fails", ""]
     lines += [f"* {s}" for s in loc.where] or ["* no channel × phase cell with |t| ≥ "
@@ -206,4 +232,4 @@ def write_outputs(d: Diagnosis, figs: Sequence[Path]) -> None:
     (out / REPORT_FILE).write_text(markdown(d, figs), encoding="utf-8")
 
 
-__all__ = ["figures", "markdown", "write_outputs", "coefficient_text", "FIGURE_DPI"]
+__all__ = ["proposal_section", "figures", "markdown", "write_outputs", "coefficient_text", "FIGURE_DPI"]

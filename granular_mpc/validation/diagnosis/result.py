@@ -16,6 +16,7 @@ from ...output import json_safe
 from ..calibrate import Calibration
 from .acceptance_records import Acceptance, ChannelChange, CoefficientCheck
 from .localization_records import Localization
+from .proposal_records import Proposal
 from .ranking_records import Ranked
 from .records import NOT_JSON, OMIT_EMPTY, OMIT_NONE, Record
 from .thresholds import (LARGE_HELDOUT_REDUCTION, MAX_DELTA_AICC, MIN_EFFECT_SIZE,
@@ -266,6 +267,8 @@ class Diagnosis(Record):
         best_candidate: for the best candidate, whether it is the answer or only the
             closest proxy, in words (empty: no candidate).
         out_dir: where it was written (None: not written).
+        proposal: a term proposed from the force equation error (:mod:`.proposal`; its
+            effect file is in ``out_dir``), None when not computed.
     """
 
     data: str
@@ -286,6 +289,7 @@ class Diagnosis(Record):
     acceptance: tuple[Acceptance, ...] = field(default=(), metadata=OMIT_EMPTY)
     best_candidate: str = ""
     out_dir: Path | None = field(default=None, metadata=NOT_JSON)
+    proposal: Proposal | None = field(default=None, metadata=OMIT_NONE)
 
     @property
     def added(self) -> list[str]:

@@ -16,7 +16,8 @@ from ..prepare import StanceWindow, windows_frame
 
 def role_channels(w: StanceWindow, values: Mapping[str, np.ndarray],
                   joint_names: Sequence[str]) -> dict:
-    """Channels renamed into stance/swing roles (``q_stance_knee``, ``q_swing_hip_pitch``)."""
+    """Channels renamed into stance/swing roles (``q_stance_knee``, ``q_swing_hip_pitch``),
+    plus the window's measured ``grf_*`` / ``intrusion_*`` channels."""
     out = {}
     for j in joint_names:
         side, _, rest = j.partition("_")
@@ -26,7 +27,8 @@ def role_channels(w: StanceWindow, values: Mapping[str, np.ndarray],
         else:
             out[f"q_{j}"] = values[f"q_{j}"]
     for c in GRF_COLUMNS + INTRUSION_COLUMNS:
-        out[c] = values[c]
+        if c in w.meas:                  # measured channels only (Dataset.channels)
+            out[c] = values[c]
     return out
 
 

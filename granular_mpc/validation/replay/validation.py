@@ -25,6 +25,7 @@ from ...output import json_safe, make_output_folder
 from ...robot.model import load_biped
 from ...effects import load_effect_file
 from ...viz.plots import plot_model_vs_measurement, plot_residual_heatmap, plot_rmse_vs_speed
+from ..channel_coverage import channel_coverage
 from ..dataformat import load_dataset
 from ..diagnosis.result import DIAGNOSIS_FILE, FittedParameters
 from ..prepare import StanceWindow, channel_names, channel_unit, stance_windows, windows_frame
@@ -152,7 +153,8 @@ def validate(data_dir: str | Path, out_dir: str | Path | None = None, *,
     if not windows:
         raise GranularMpcError(f"{data_dir}: no complete stance phase to replay")
     J = list(ds.joint_names)
-    channels = channel_names(J)
+    channels = channel_names(J, ds.channels)          # measured channels only
+    coverage = channel_coverage(ds)
     check_sensor_specs(specs, windows[0], J)      # a clear error before any replay
     base = Variant(theta={k: float(v) for k, v in cal.items() if k in REPLAY_PARAMS},
                    label=model)
@@ -176,6 +178,7 @@ def validate(data_dir: str | Path, out_dir: str | Path | None = None, *,
         "n_trials": len(ds.trials), "n_stances": len(windows),
         "speeds_mps": sorted({w.speed for w in windows}),
         "channels": channels, "units": {c: channel_unit(c) for c in channels},
+        "coverage": coverage.to_dict(),
         "phase_bins": phase_bins,
         "interval": {"ci": 0.95, "n_boot": n_boot,
                      "unit": tables[model]["overall"]["interval_unit"].iloc[0]},
@@ -199,7 +202,22 @@ def validate(data_dir: str | Path, out_dir: str | Path | None = None, *,
     if out is not None:
         (out / "report.json").write_text(json.dumps(json_safe(report), indent=1),
                                          encoding="utf-8")
+        (out / "report.md").write_text(_markdown(report, coverage), encoding="utf-8")
     return ValidationReport(report, tables, windows, preds, out, tuple(figs))
+
+
+def _markdown(report: Mapping[str, Any], coverage) -> str:
+    """``report.md``: the overall RMSE per model and the channel coverage."""
+    labels = list(report["overall_rmse"])
+    lines = [f"# Validation of `{report['data']}`", "",
+             f"Model `{report['model']}`, {report['n_stances']} stances from "
+             f"{report['n_trials']} trial(s); RMSE over all stances.", "",
+             "| channel | unit | " + " | ".join(labels) + " |",
+             "|---|---|" + "---|" * len(labels)]
+    for c in report["channels"]:
+        lines.append(f"| {c} | {report['units'][c]} | "
+                     + " | ".join(f"{report['overall_rmse'][k][c]:.4g}" for k in labels) + " |")
+    return "\n".join(lines + [""] + coverage.markdown())
 
 
 def _figures(out: Path, windows: Sequence[StanceWindow], preds: dict, tables: dict,

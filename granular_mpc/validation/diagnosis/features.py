@@ -1,0 +1,202 @@
+"""The force-equation samples and the library of physically named features a proposed
+term is built from (``docs/validation.md`` §3.6).
+
+While the stance foot sinks, the medium yields and the model's vertical and forward
+force *is* the closed-form RFT force at the measured depth, pitch and direction of
+motion (model.md §2.4; the same samples as the calibration, §3.1). What the measured foot
+force has beyond it is the force the model is missing — an *equation error* at the
+measured state, free of the replay's drift and of the way a missing force moves into
+the depth in a replay (the robot's weight must be carried either way). Each feature is a
+function of the measured state of the stance foot with a :class:`PatchState` expression
+of the same quantity, so a selected combination can be written as a terrain-force
+effect in the plugin format (:mod:`.proposal_file`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+from ..prepare import StanceWindow
+
+#: sinking samples: sink rate [m/s], depth [m], vertical force [N]. The rate is twice the
+#: calibration's: at the end of the sinking the smoothed rate lags the foot coming to rest,
+#: and those samples (≈ 10 % of the calibration's) carry a 20–35 N equation error on data
+#: the model reproduces exactly — more than the effects a proposal is after.
+MIN_SINK_RATE = 0.4
+MIN_DEPTH = 2e-3
+MIN_FORCE = 10.0
+
+#: the force axes a proposal is fitted on: vertical (W z, up) and forward (along the sole's heading)
+AXES = ("z", "h")
+
+
+@dataclass(frozen=True)
+class Feature:
+    """One physically named regressor.
+
+    Attributes:
+        name: identifier (also the coefficient's name in the effect file).
+        description: what it is, in words.
+        unit: the feature's unit (the coefficient's unit is N per this).
+        patch_expression: the same quantity written on a :class:`PatchState` ``s`` with the
+            math namespace ``o`` (empty: not expressible in the plugin state).
+        compute: (sample columns) → feature values.
+    """
+
+    name: str
+    description: str
+    unit: str
+    patch_expression: str
+    compute: Callable[[Mapping[str, np.ndarray]], np.ndarray]
+
+    @property
+    def expressible(self) -> bool:
+        """Whether a terrain-force effect can read it."""
+        return bool(self.patch_expression)
+
+
+_V_H = "(s.v_c[0] * s.heading[0] + s.v_c[1] * s.heading[1])"
+_V_L = "(s.v_c[0] * s.lateral[0] + s.v_c[1] * s.lateral[1])"
+
+#: the feature library (foot level; all zero out of contact). On sinking samples v_z < 0,
+#: so |v_z| and sign(v_z) would duplicate v_z and the constant: they are not in it.
+FEATURES: tuple[Feature, ...] = (
+    Feature("contact", "constant force while in contact", "1", "s.in_contact",
+            lambda c: np.ones_like(c["depth"])),
+    Feature("depth", "depth of the sole below the free surface", "m", "s.depth",
+            lambda c: c["depth"]),
+    Feature("depth_sq", "depth squared", "m²", "s.depth ** 2", lambda c: c["depth"] ** 2),
+    Feature("v_z", "vertical sole velocity (W z, up; < 0 while sinking)", "m/s", "s.v_c[2]",
+            lambda c: c["v_z"]),
+    Feature("v_z_abs_v_z", "v_z·|v_z| (quadratic vertical drag)", "m²/s²",
+            "s.v_c[2] * o.fabs(s.v_c[2])", lambda c: c["v_z"] * np.abs(c["v_z"])),
+    Feature("depth_v_z", "depth × vertical sole velocity", "m²/s", "s.depth * s.v_c[2]",
+            lambda c: c["depth"] * c["v_z"]),
+    Feature("v_h", "forward sole velocity (along the heading)", "m/s", _V_H,
+            lambda c: c["v_h"]),
+    Feature("abs_v_h", "forward sole speed |v_h|", "m/s", f"o.fabs{_V_H}",
+            lambda c: np.abs(c["v_h"])),
+    Feature("sign_v_h", "sign of the forward sole velocity (Coulomb-like)", "1",
+            f"o.if_else({_V_H} > 0.0, 1.0, -1.0)", lambda c: np.sign(c["v_h"])),
+    Feature("v_h_abs_v_h", "v_h·|v_h| (quadratic forward drag)", "m²/s²",
+            f"{_V_H} * o.fabs{_V_H}", lambda c: c["v_h"] * np.abs(c["v_h"])),
+    Feature("v_l", "lateral sole velocity (left of the heading)", "m/s", _V_L,
+            lambda c: c["v_l"]),
+    Feature("a_z", "vertical sole acceleration", "m/s²", "s.a_c[2]", lambda c: c["a_z"]),
+    Feature("t_stance", "time since touchdown", "s", "s.t_stance", lambda c: c["t_stance"]),
+    Feature("right_foot", "1 on the right foot (per-foot difference)", "1", "",
+            lambda c: c["foot"].astype(float)),
+)
+
+
+def feature_names() -> tuple[str, ...]:
+    """Names of :data:`FEATURES`, in order."""
+    return tuple(f.name for f in FEATURES)
+
+
+def feature(name: str) -> Feature:
+    """The feature called ``name``."""
+    return next(f for f in FEATURES if f.name == name)
+
+
+@dataclass(frozen=True, eq=False)
+class ForceSamples:
+    """The equation-error samples of the force, per axis.
+
+    Attributes:
+        target: axis → measured − model force at the calibrated θ [N], (N,).
+        nuisance: axis → ∂(model force)/∂ζ [N], (N,) (ζ stays free: never a feature).
+        features: (N, F) feature values (:data:`FEATURES` order).
+        trial, window, foot: per sample (foot 0 left, 1 right).
+        n_slices: contact patches per foot (a foot-level coefficient / n_slices is the
+            per-patch coefficient of an effect file).
+    """
+
+    target: Mapping[str, np.ndarray]
+    nuisance: Mapping[str, np.ndarray]
+    features: np.ndarray
+    trial: np.ndarray
+    window: np.ndarray
+    foot: np.ndarray
+    n_slices: int
+
+    @property
+    def n(self) -> int:
+        return int(self.trial.size)
+
+
+def sample_columns(windows: Sequence[StanceWindow]) -> dict[str, np.ndarray]:
+    """The measured state on the sinking samples of every window (the calibration's
+    samples): depth, pitch, sole velocity (W z; forward and lateral along the heading),
+    vertical acceleration, time in stance, forward and vertical force, trial, window, foot."""
+    keys = ("depth", "pitch", "v_h", "v_l", "v_z", "a_z", "t_stance", "f_h", "f_z", "window",
+            "trial", "foot")
+    cols: dict[str, list] = {k: [] for k in keys}
+    for w in windows:
+        f = w.features
+        m = (f["sink_velocity"] > MIN_SINK_RATE) & (f["depth"] > MIN_DEPTH) & (f["grf_z"] > MIN_FORCE)
+        if not m.any():
+            continue
+        n = int(m.sum())
+        cols["depth"].append(f["depth"][m])
+        cols["pitch"].append(f["pitch"][m])
+        cols["v_h"].append(f["v_h"][m])
+        cols["v_l"].append(f["v_l"][m])
+        cols["v_z"].append(f["vc_z"][m])
+        cols["a_z"].append(-f["sink_acceleration"][m])
+        cols["t_stance"].append(f["time_in_stance"][m])
+        cols["f_h"].append(w.meas["grf_x"][m] * f["heading_x"][m]
+                           + w.meas["grf_y"][m] * f["heading_y"][m])
+        cols["f_z"].append(w.meas["grf_z"][m])
+        cols["window"].append(np.full(n, w.index))
+        cols["trial"].append(np.full(n, w.trial, dtype=object))
+        cols["foot"].append(np.full(n, w.foot))
+    return {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in cols.items()}
+
+
+def force_samples(windows: Sequence[StanceWindow], terrain, theta: Mapping[str, float], *,
+                  n_slices: int) -> ForceSamples:
+    """Equation-error force samples at the calibrated θ and the feature matrix.
+
+    Args:
+        windows: stance windows.
+        terrain: the model's :class:`~granular_mpc.terrain.TerrainModel` (granular).
+        theta: calibrated parameters (``zeta``; ``phi_s`` if calibrated).
+        n_slices: contact patches per foot.
+    """
+    import casadi as ca
+
+    c = sample_columns(windows)
+    N = int(c["depth"].size)
+    F = np.column_stack([f.compute(c) for f in FEATURES]) if N else np.zeros((0, len(FEATURES)))
+    if N == 0:
+        z = np.zeros(0)
+        return ForceSamples({a: z for a in AXES}, {a: z for a in AXES}, F, c["trial"],
+                            c["window"], c["foot"], n_slices)
+    cfg = terrain.config
+    th = terrain.casadi_theta.copy()
+    th[0] = float(theta.get("zeta", th[0]))
+    if "phi_s" in theta:
+        th[1] = float(theta["phi_s"])
+    K, tau = cfg.contact_stiffness, cfg.direction_time_constant
+    u_h = c["v_h"] - c["f_h"] / (n_slices * K * tau)
+    u_z = c["v_z"] - c["f_z"] / (n_slices * K * tau)
+    X = ca.DM(np.vstack([c["depth"], c["pitch"], u_h, u_z]))
+    fn = terrain.casadi_foot_forces()
+    ths = ca.MX.sym("th", 4)
+    Xs = ca.MX.sym("X", 4, N)
+    out = fn.map(N, "serial")(Xs, ca.repmat(ths, 1, N))
+    fh, fz = ca.transpose(out[0, :]), ca.transpose(out[1, :])
+    ev = ca.Function("ff", [Xs, ths], [fh, fz, ca.jacobian(fh, ths)[:, 0],
+                                       ca.jacobian(fz, ths)[:, 0]])
+    mh, mz, jh, jz = (np.asarray(v).ravel() for v in ev(X, th))
+    return ForceSamples({"z": c["f_z"] - mz, "h": c["f_h"] - mh}, {"z": jz, "h": jh}, F,
+                        c["trial"].astype(str), c["window"].astype(int), c["foot"].astype(int),
+                        n_slices)
+
+
+__all__ = ["Feature", "FEATURES", "ForceSamples", "force_samples", "sample_columns",
+           "feature_names", "feature", "AXES"]

@@ -1,0 +1,90 @@
+"""Frozen records of a proposed term (:mod:`.proposal`), part of ``diagnosis.json``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .records import OMIT_EMPTY, Record
+
+
+@dataclass(frozen=True)
+class ProposedTerm(Record):
+    """One selected feature of a proposed force.
+
+    Attributes:
+        axis: ``z`` (vertical, up) or ``h`` (forward, along the sole's heading).
+        feature: the feature's name (:data:`~.features.FEATURES`).
+        description: what the feature is, in words.
+        coefficient_foot: coefficient on the whole foot [N per feature unit].
+        coefficient_patch: the same per contact patch (the effect file's value).
+        std_error: standard error of ``coefficient_foot`` (OLS on the selected features).
+        unit: the coefficient's unit.
+        selection_frequency: share of the stability resamples that selected it.
+        expressible: whether a terrain-force effect can read the feature.
+    """
+
+    axis: str
+    feature: str
+    description: str
+    coefficient_foot: float
+    coefficient_patch: float
+    std_error: float
+    unit: str
+    selection_frequency: float
+    expressible: bool
+
+
+@dataclass(frozen=True)
+class AxisFit(Record):
+    """The sparse fit of one force axis.
+
+    Attributes:
+        axis: ``z`` or ``h``.
+        heldout_error_reduction: 1 − SSE_CV(ζ + sparse) / SSE_CV(ζ), trial-grouped, the
+            selection redone in each fold.
+        heldout_error_reduction_selected: the same for a refit on the stable features.
+        rms_before, rms_after: in-sample RMS equation error [N] (ζ refitted; with the terms).
+        threshold: the STLSQ threshold chosen by cross-validation (standardised).
+        proposed: whether this axis contributes terms.
+    """
+
+    axis: str
+    heldout_error_reduction: float
+    heldout_error_reduction_selected: float
+    rms_before: float
+    rms_after: float
+    threshold: float
+    proposed: bool
+
+
+@dataclass(frozen=True)
+class Proposal(Record):
+    """A term proposed from the force equation error when no library term may fit.
+
+    Attributes:
+        effect: the proposed effect's name (as registered by ``file``).
+        file: the effect file written into the diagnosis folder (empty: none written).
+        terms: the selected features (empty: nothing proposed).
+        axes: per force axis, the fit's statistics.
+        n_samples, n_stances: sinking samples and stances used.
+        pointed_to: whether the verdict points the user to it.
+        note: how it was found and what it is not.
+    """
+
+    effect: str
+    file: str
+    terms: tuple[ProposedTerm, ...]
+    axes: tuple[AxisFit, ...]
+    n_samples: int
+    n_stances: int
+    pointed_to: bool = False
+    note: str = ""
+    not_expressible: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
+
+    @property
+    def proposed(self) -> bool:
+        """Whether any term is proposed."""
+        return bool(self.terms)
+
+
+__all__ = ["ProposedTerm", "AxisFit", "Proposal"]

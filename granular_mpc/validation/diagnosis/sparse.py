@@ -1,0 +1,183 @@
+"""Sparse regression for proposed terms: sequentially thresholded least squares (STLSQ)
+with unpenalised nuisance columns, the threshold chosen by trial-grouped cross-validation,
+and stability selection over resampled stances (``docs/validation.md`` §3.6).
+
+STLSQ (the SINDy algorithm: least squares, zero the coefficients below a threshold,
+refit on the rest, repeat) is written here rather than taken from PySINDy because the
+problem is not x' = f(x): the target is a force residual, the calibration's ζ column must
+stay in every model unpenalised, and the folds must hold out whole trials — none of which
+PySINDy's optimisers and ``SINDy.fit`` express without working around them. Features are
+standardised (unit RMS) so one threshold serves all of them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: thresholds tried (standardised coefficient, in units of the target's RMS)
+THRESHOLDS = np.geomspace(0.01, 1.0, 21)
+#: a sparser model is preferred while its CV error is within this factor of the best
+CV_TOLERANCE = 1.02
+#: stability selection: resamples, and the share of them a feature must be selected in
+N_STABILITY = 100
+MIN_FREQUENCY = 0.7
+
+
+def stlsq(X: np.ndarray, N: np.ndarray, y: np.ndarray, threshold: float,
+          iterations: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """STLSQ of y on [N, X] with N unpenalised.
+
+    Args:
+        X: (n, F) standardised features; N: (n, K) nuisance columns; y: (n,) target.
+        threshold: |coefficient| below which a feature is dropped.
+
+    Returns:
+        (ξ (F,), ν (K,)): feature and nuisance coefficients.
+    """
+    F = X.shape[1]
+    active = np.ones(F, bool)
+    xi = np.zeros(F)
+    nu = np.zeros(N.shape[1])
+    for _ in range(iterations):
+        A = np.hstack([N, X[:, active]])
+        sol = np.linalg.lstsq(A, y, rcond=None)[0] if A.shape[1] else np.zeros(0)
+        nu = sol[:N.shape[1]]
+        xi = np.zeros(F)
+        xi[active] = sol[N.shape[1]:]
+        keep = active & (np.abs(xi) >= threshold)
+        if keep.sum() == active.sum():
+            break
+        active = keep
+        xi[~active] = 0.0
+    return xi, nu
+
+
+def folds(groups: np.ndarray, n_splits: int = 5) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Grouped K-fold (whole groups held out; at most ``n_splits`` folds)."""
+    from sklearn.model_selection import GroupKFold
+
+    k = min(n_splits, int(np.unique(groups).size))
+    if k < 2:
+        return []
+    return list(GroupKFold(n_splits=k).split(np.zeros(groups.size), groups=groups))
+
+
+def cv_sse(X: np.ndarray, N: np.ndarray, y: np.ndarray, splits, threshold: float) -> float:
+    """Held-out SSE of STLSQ at ``threshold`` over ``splits`` (selection inside each fold)."""
+    sse = 0.0
+    for tr, te in splits:
+        xi, nu = stlsq(X[tr], N[tr], y[tr], threshold)
+        sse += float(np.sum((y[te] - N[te] @ nu - X[te] @ xi) ** 2))
+    return sse
+
+
+@dataclass(frozen=True, eq=False)
+class SparseFit:
+    """A sparse fit of one target.
+
+    Attributes:
+        coef: (F,) coefficients in the features' own units (0: not selected).
+        frequency: (F,) share of the stability resamples that selected each feature.
+        selected: (F,) bool: selected (frequency ≥ :data:`MIN_FREQUENCY`).
+        threshold: the chosen standardised threshold.
+        heldout_reduction: 1 − SSE_CV(nuisance + STLSQ) / SSE_CV(nuisance), the selection
+            redone inside each fold (whole groups held out).
+        heldout_reduction_selected: the same for a plain refit on the stable features.
+        rmse_before, rmse_after: in-sample RMS of the target after the nuisance fit, and
+            with the stable features too (target units).
+        stderr: (F,) standard errors of ``coef`` (OLS on the stable features; NaN else).
+    """
+
+    coef: np.ndarray
+    frequency: np.ndarray
+    selected: np.ndarray
+    threshold: float
+    heldout_reduction: float
+    heldout_reduction_selected: float
+    rmse_before: float
+    rmse_after: float
+    stderr: np.ndarray
+
+
+def independent(X: np.ndarray, N: np.ndarray, tol: float = 1e-3) -> np.ndarray:
+    """(F,) bool: the features, in order, that are not (nearly) in the span of the
+    nuisance columns and the features kept before them (on sinking samples |v_h| = v_h and
+    sign(v_h) = 1: such duplicates would share one coefficient between them)."""
+    keep = np.zeros(X.shape[1], bool)
+    for k in range(X.shape[1]):
+        A = np.hstack([N, X[:, keep]])
+        x = X[:, k]
+        r = x - A @ np.linalg.lstsq(A, x, rcond=None)[0] if A.shape[1] else x
+        keep[k] = float(np.linalg.norm(r)) > tol * max(float(np.linalg.norm(x)), 1e-300)
+    return keep
+
+
+def _ols_cv(A: np.ndarray, y: np.ndarray, splits) -> float:
+    sse = 0.0
+    for tr, te in splits:
+        b = np.linalg.lstsq(A[tr], y[tr], rcond=None)[0] if A.shape[1] else np.zeros(0)
+        sse += float(np.sum((y[te] - A[te] @ b) ** 2))
+    return sse
+
+
+def sparse_fit(Phi: np.ndarray, N: np.ndarray, y: np.ndarray, groups: np.ndarray,
+               units: np.ndarray, *, seed: int = 0) -> SparseFit:
+    """STLSQ with CV-chosen threshold and stability selection.
+
+    Args:
+        Phi: (n, F) features (own units); N: (n, K) nuisance columns (unpenalised).
+        y: (n,) target; groups: CV groups (trials); units: resampling units (stances).
+        seed: seed of the stability resamples.
+    """
+    F = Phi.shape[1]
+    scale = np.sqrt(np.mean(Phi ** 2, axis=0))
+    scale[scale == 0] = 1.0
+    ys = float(np.sqrt(np.mean(y ** 2))) or 1.0
+    Nn = N / np.where(np.sqrt(np.mean(N ** 2, axis=0)) > 0, np.sqrt(np.mean(N ** 2, axis=0)), 1.0)
+    usable = independent(Phi / scale, Nn)
+    X, yy = np.where(usable, Phi / scale, 0.0), y / ys
+    splits = folds(groups)
+    if not splits:
+        splits = folds(units)
+    base = _ols_cv(Nn, yy, splits)
+    errs = np.array([cv_sse(X, Nn, yy, splits, t) for t in THRESHOLDS])
+    ok = np.flatnonzero(errs <= CV_TOLERANCE * errs.min())
+    thr = float(THRESHOLDS[ok.max()])
+    rng = np.random.default_rng(seed)
+    uniq = np.unique(units)
+    members = {u: np.flatnonzero(units == u) for u in uniq}
+    count = np.zeros(F)
+    for _ in range(N_STABILITY):
+        pick = rng.choice(uniq, uniq.size, replace=True)
+        ii = np.concatenate([members[u] for u in pick])
+        xi, _ = stlsq(X[ii], Nn[ii], yy[ii], thr)
+        count += xi != 0
+    freq = np.where(usable, count / N_STABILITY, 0.0)
+    sel = usable & (freq >= MIN_FREQUENCY)
+    A = np.hstack([Nn, X[:, sel]])
+    b = np.linalg.lstsq(A, yy, rcond=None)[0]
+    r_after = yy - A @ b
+    r_before = yy - Nn @ np.linalg.lstsq(Nn, yy, rcond=None)[0]
+    coef = np.zeros(F)
+    coef[sel] = b[Nn.shape[1]:] * ys / scale[sel]
+    dof = max(yy.size - A.shape[1], 1)
+    s2 = float(r_after @ r_after) / dof
+    se = np.full(F, np.nan)
+    try:
+        cov = np.linalg.inv(A.T @ A) * s2
+        se[sel] = np.sqrt(np.abs(np.diag(cov)[Nn.shape[1]:])) * ys / scale[sel]
+    except np.linalg.LinAlgError:
+        pass
+    cv_stl = float(errs[ok.max()])
+    cv_sel = _ols_cv(A, yy, splits)
+    red = 1.0 - cv_stl / base if base > 0 else 0.0
+    red_sel = 1.0 - cv_sel / base if base > 0 else 0.0
+    return SparseFit(coef, freq, sel, thr, red, red_sel,
+                     float(np.sqrt(np.mean(r_before ** 2))) * ys,
+                     float(np.sqrt(np.mean(r_after ** 2))) * ys, se)
+
+
+__all__ = ["stlsq", "sparse_fit", "SparseFit", "folds", "cv_sse", "THRESHOLDS",
+           "MIN_FREQUENCY", "N_STABILITY"]
