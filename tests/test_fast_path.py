@@ -192,3 +192,13 @@ def test_concurrent_builds_are_safe(tmp_path):
     assert len(lines) == 1
     assert len(list(tmp_path.glob("probe_*.so"))) == 1
     assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_without_a_c_compiler_the_reference_plant_steps_and_says_why(monkeypatch):
+    """CasADi's interpreter is slower than Pinocchio: no compiler → the reference plant."""
+    monkeypatch.setenv("GRANULAR_MPC_JIT", "0")
+    sim = build_simulation(load_scenario("sand_walk", ["sim.duration=0.1", "sim.plant=reference"]))
+    plant, choice = select_plant(sim.plant, "compiled")
+    assert plant is sim.plant
+    assert (choice.requested, choice.resolved) == ("compiled", "reference")
+    assert "C compiler" in choice.reason

@@ -20,6 +20,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
+from ..codegen import compiler
 from ..exceptions import ConfigError
 from .compiled import CompiledPlant
 from .fast_plant import FastPlant
@@ -72,6 +73,9 @@ def compiled_unsupported(plant: Plant) -> str:
         return "the track terrain has one contact law per segment"
     if plant.actuators.active:
         return "sim.actuators (joint friction, motor envelope, rotor inertia) is not compiled"
+    if compiler() is None or os.environ.get("GRANULAR_MPC_JIT", "1") == "0":
+        # CasADi's interpreter would evaluate the step, several times slower than Pinocchio
+        return "no C compiler found (install gcc or set CC)"
     return ""
 
 
