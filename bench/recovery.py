@@ -2,6 +2,7 @@
 
     python bench/recovery.py [--seeds 1 2 3] [--levels 0.5 1.0] [--effects NAME:k=v …]
                              [--nulls 10] [--mismatch KEY=VALUE …] [--steps 9] [--out DIR [--reuse]] [--json PATH] [--quick]
+    python bench/recovery.py --workbench [--out DIR] [--json PATH]
 
 For every hidden effect and seed, one plant run (``synth``, no noise: 5 speeds × ``steps``
 stances) is turned into one data set per noise level (``noisy_copy``, the realistic sensor
@@ -27,7 +28,13 @@ nothing added.
 Summary lines (``name: value unit``): rank1_rate, coef_within_15pct_rate,
 heldout_reduction_ge_50pct_rate, null_nothing_added_rate, mismatch_calibrated_rate,
 cases, null_cases, mismatch_cases. ``--quick``: 2 effects ×
-1 seed × 1 level + 1 null (the slow test runs this).
+1 seed × 1 level + 1 null.
+
+``--workbench [--out DIR]``: the held-out threshold study of the test suite
+(docs/testing.md). The workbench data sets of tests/workbench.py are made again with the
+plant and noise seeds shifted by ``HELDOUT_SEED_OFFSET`` (seeds no assertion uses) and two
+noise seeds each; every figure that tests/test_diagnose.py and tests/test_replay.py assert
+on is printed (``case noise_seed figure: value``), to set or check the thresholds.
 """
 
 from __future__ import annotations
@@ -95,6 +102,132 @@ def run_case(data: Path, effect: str | None, out: Path, seed: int,
     return row
 
 
+def _rel(value: float, true: float) -> float:
+    return abs(value - true) / abs(true)
+
+
+def _diagnosis_figures(wb, name: str, d) -> dict:
+    """The figures tests/test_diagnose.py asserts on, for one case's diagnosis."""
+    f = {"added": ",".join(d.added) or "-"}
+    if name == "null":
+        f["zeta_rel_err"] = _rel(d.calibration.values["zeta"], 1.36)
+    elif name == "cohesion":
+        top = d.ranking[0]
+        red = d.heldout_reduction_by_channel
+        f.update(top=top.effect, heldout_red=top.heldout_error_reduction,
+                 inclusion=top.inclusion_probability,
+                 suction_rel_err=_rel(top.value_of("suction"), 3000.0),
+                 q_heldout_red_max=max(v.reduction for k, v in red.items() if k.startswith("q_")),
+                 q_right_knee_replay_red=d.replay_rmse_by_channel["q_right_knee"].reduction)
+    elif name == "zeta_off":
+        cal = d.calibration
+        lo, hi = cal.equation_error.ci_boot["zeta"]
+        f.update(eq_zeta_rel_err=_rel(cal.equation_error.values["zeta"], 1.768),
+                 zeta_rel_err=_rel(cal.values["zeta"], 1.768),
+                 eq_ci_contains=lo < cal.equation_error.values["zeta"] < hi)
+    elif name == "unknown":
+        loc = d.localization.before
+        lateral = {"grf_y", "intrusion_y", "q_left_hip_abd", "q_right_hip_abd"}
+        f.update(lateral_in_top8=bool(lateral & {c.channel for c in loc.significant_cells[:8]}),
+                 lateral_share_max=max(loc.by_channel[c].systematic_share for c in lateral),
+                 lateral_p_min=min(e.p_value for c in lateral for e in loc.correlates[c][:3]))
+        if wb.USER_OBLIQUE in d.fitted_effects:
+            f["oblique_c_rel_err"] = _rel(d.fitted_effects[wb.USER_OBLIQUE]["c"], 18.0)
+    return f
+
+
+def _replay_figures(wb, clean: Path) -> dict:
+    """The figures tests/test_replay.py asserts on, from the held-out noise-free null data."""
+    import numpy as np
+
+    from granular_mpc.robot.model import load_biped
+    from granular_mpc.validation import load_dataset
+    from granular_mpc.validation.prepare import stance_windows
+    from granular_mpc.validation.replay import (Variant, build_replay_model, effect_variant,
+                                                model_terrain, replay_granular,
+                                                resolve_effect_specs)
+
+    ds = load_dataset(clean)
+    biped = load_biped(ds.meta.robot, with_visuals=False)
+    rm = build_replay_model(biped, model_terrain("dry_sand"),
+                            sample_rate_hz=ds.meta.sample_rate_hz, terrain_effects=["cohesion"])
+    ws = stance_windows(ds, biped, contact_stiffness=rm.contact_stiffness)
+    trail = [w.feet[1 - w.foot] for w in ws]
+    lead = [w.feet[w.foot] for w in ws]
+    err = {c: [] for c in ("q_left_knee", "q_right_knee", "grf_z", "intrusion_z")}
+    for w in ws:
+        out = replay_granular(rm, w, Variant(theta={"touchdown_depth": 2e-4}))
+        for c in err:
+            err[c].append(out[c] - w.meas[c])
+    f = {"n_windows": len(ws), "trail_force_min": min(t.force[2] for t in trail),
+         "trail_depth_min": min(t.depth for t in trail),
+         "trail_depth_max": max(t.depth for t in trail),
+         "lead_height_max": max(-x.depth for x in lead)}
+    f.update({f"noise_free_rms_{c}": float(np.sqrt(np.mean(np.concatenate(v) ** 2)))
+              for c, v in err.items()})
+    soft_d, coh_d = [], []
+    for w in ws:
+        base = replay_granular(rm, w, Variant())
+        soft = replay_granular(rm, w, Variant(theta={"zeta": 0.9}))
+        coh = replay_granular(rm, w, effect_variant([(*resolve_effect_specs(["cohesion"])[0],)]))
+        soft_d.append(soft["intrusion_z"][-1] - base["intrusion_z"][-1])
+        coh_d.append(float(np.max(np.abs(coh["q_right_knee"] - base["q_right_knee"]))))
+    f.update(soft_deeper_min=min(soft_d), cohesion_knee_change_min=min(coh_d))
+    return f
+
+
+def _validate_figures(noisy: Path, out: Path) -> dict:
+    """test_replay.py's model comparison and "adding the true effect" figures."""
+    from granular_mpc.validation.replay import validate
+
+    rep = {m: validate(noisy, out / m, model=m, n_boot=200, figures=False).report
+           for m in ("rigid", "planar")}
+    rep["added"] = validate(noisy, out / "added", effects=["cohesion:suction=3000"],
+                            n_boot=200, figures=False).report
+    g = rep["added"]["overall_rmse"]["granular"]
+    rg, pl = rep["rigid"]["overall_rmse"]["rigid"], rep["planar"]["overall_rmse"]["planar"]
+    ba = rep["added"]["before_after"]
+    return {"rigid_over_granular_intrusion_z": rg["intrusion_z"] / g["intrusion_z"],
+            "rigid_over_granular_grf_z": rg["grf_z"] / g["grf_z"],
+            "planar_over_rigid_intrusion_z": pl["intrusion_z"] / rg["intrusion_z"],
+            **{f"added_after_over_before_{c}": ba[c]["after"] / ba[c]["before"]
+               for c in ("q_left_knee", "q_right_knee", "q_left_hip_pitch")}}
+
+
+def heldout_study(out: Path | None, json_path: Path | None) -> dict:
+    """Print (and return) every asserted figure on the held-out workbench data sets."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+    import workbench as wb
+    from granular_mpc.validation.synth import noisy_copy
+
+    tmp = tempfile.TemporaryDirectory()
+    root = out or Path(tmp.name)
+    results: dict = {}
+    for name, case in wb.WB_CASES.items():
+        plant_seed = case["seed"] + wb.HELDOUT_SEED_OFFSET
+        clean = wb.make_clean(name, root / f"{name}_s{plant_seed}_clean", plant_seed)
+        if name == "null":
+            results["replay null s%d" % plant_seed] = _replay_figures(wb, clean)
+        for noise_seed in (plant_seed, plant_seed + 10):
+            noisy = noisy_copy(clean, root / f"{name}_s{plant_seed}_n{noise_seed}", 1.0,
+                               seed=noise_seed, overwrite=True)
+            d, _ = wb.diagnose_case(name, noisy, None, figures=False)
+            results[f"diagnose {name} s{plant_seed} n{noise_seed}"] = _diagnosis_figures(wb, name, d)
+            if name == "cohesion" and noise_seed == plant_seed:
+                results[f"validate {name} s{plant_seed} n{noise_seed}"] = _validate_figures(
+                    noisy, root / f"validate_{noise_seed}")
+    for key, figs in results.items():
+        for k, v in figs.items():
+            print(f"{key} {k}: {v:.4g}" if isinstance(v, float) else f"{key} {k}: {v}",
+                  flush=True)
+    if json_path:
+        json_path.write_text(json.dumps(results, indent=1, default=str), encoding="utf-8")
+    tmp.cleanup()
+    return results
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
@@ -107,9 +240,14 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=None, help="keep data and reports here")
     ap.add_argument("--json", type=Path)
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--workbench", action="store_true",
+                    help="held-out threshold study of the test suite's workbench data sets")
     ap.add_argument("--reuse", action="store_true",
                     help="with --out: reuse data sets already there (re-diagnose only)")
     args = ap.parse_args()
+    if args.workbench:
+        heldout_study(args.out, args.json)
+        return
     if args.quick:
         args.effects, args.seeds, args.levels, args.nulls = args.effects[1:3], [1], [1.0], 1
         args.mismatch = []

@@ -44,56 +44,28 @@ def rigid(robot_config):
 # noisy copies add the realistic sensor model (level 1).
 # --------------------------------------------------------------------------------------
 
-#: three speeds × ≈ 7 stances: enough trials for trial-grouped cross-validation
-WB_SPEEDS = (0.15, 0.25, 0.35)
-WB_STEPS = 7
-#: a hidden effect outside the library (registered for the synth only, never a candidate)
-WB_HIDDEN = "_test_hidden_skew"
-
-
-def _register_hidden():
-    from granular_mpc.terrain.effects import Param, register_effect, registered_effects
-
-    if WB_HIDDEN in registered_effects():
-        return
-
-    @register_effect(WB_HIDDEN, params={"k": Param(12.0, 0.0, 200.0, "N·s/m", "")})
-    def _skew(o, s, p):
-        """Sideways push proportional to the forward velocity of the sole."""
-        return (0.0, -p["k"] * s.v_c[0] * s.in_contact, 0.0)
-
-
-WB_CASES = {
-    "null": dict(effects=[], seed=21, overrides=[]),
-    "cohesion": dict(effects=["cohesion:suction=3000"], seed=22, overrides=[]),
-    "zeta_off": dict(effects=[], seed=23, overrides=["terrain.zeta=1.768"]),
-    "unknown": dict(effects=[f"{WB_HIDDEN}:k=18"], seed=24, overrides=[]),
-}
+from workbench import LIBRARY, WB_CASES, diagnose_case, make_clean  # noqa: E402
 
 
 @pytest.fixture(scope="session")
 def workbench_data(tmp_path_factory):
-    """``workbench_data(name, noisy=True)`` → path of a cached data set (see WB_CASES)."""
-    from granular_mpc.validation.synth import noisy_copy, synthesize
+    """``workbench_data(name, noisy=True, noise_seed=None)`` → path of a cached data set
+    (tests/workbench.py: WB_CASES; noise seed default: the case's plant seed)."""
+    from granular_mpc.validation.synth import noisy_copy
 
     root = tmp_path_factory.mktemp("workbench")
     cache: dict = {}
 
-    def get(name: str, noisy: bool = True):
-        key = (name, noisy)
+    def get(name: str, noisy: bool = True, noise_seed: int | None = None):
+        seed = WB_CASES[name]["seed"] if noise_seed is None else int(noise_seed)
+        key = (name, seed if noisy else None)
         if key in cache:
             return cache[key]
-        clean = root / f"{name}_clean"
-        if (name, False) not in cache:
-            case = WB_CASES[name]
-            if name == "unknown":
-                _register_hidden()
-            synthesize("sand_walk", clean, speeds=WB_SPEEDS, steps=WB_STEPS, seed=case["seed"],
-                       effects=case["effects"], noise=0.0, format="parquet",
-                       overrides=case["overrides"])
-            cache[(name, False)] = clean
+        if (name, None) not in cache:
+            cache[(name, None)] = make_clean(name, root / f"{name}_clean")
         if noisy:
-            cache[key] = noisy_copy(clean, root / f"{name}_noisy", 1.0, seed=WB_CASES[name]["seed"])
+            cache[key] = noisy_copy(cache[(name, None)], root / f"{name}_noisy_{seed}", 1.0,
+                                    seed=seed)
         return cache[key]
 
     return get
@@ -103,22 +75,30 @@ def workbench_data(tmp_path_factory):
 def library_candidates():
     """The built-in effects library (tests pass it explicitly: other tests register
     effects of their own in the same session)."""
-    return ["inertial_drag", "cohesion", "depth_hardening", "elastic_unloading",
-            "joint_friction", "force_sensor_bias", "terrain_slope"]
+    return list(LIBRARY)
 
 
 @pytest.fixture(scope="session")
-def workbench_diagnosis(workbench_data, library_candidates, tmp_path_factory):
-    """``workbench_diagnosis(name)`` → a cached :class:`Diagnosis` of the noisy data set."""
-    from granular_mpc.validation.diagnose import diagnose
-
+def workbench_diagnosis(workbench_data, tmp_path_factory):
+    """``workbench_diagnosis(name, noise_seed=None)`` → a cached :class:`Diagnosis` of the
+    noisy data set. At the default noise seed the candidates are the library plus the
+    case's user terms (tests/workbench.py: case_candidates) and figures are written; at
+    other noise seeds (the multi-seed recovery test) the library alone, no figures.
+    ``workbench_diagnosis.warnings[name]``: the UserWarnings the default diagnosis raised."""
     root = tmp_path_factory.mktemp("workbench_diag")
     cache: dict = {}
 
-    def get(name: str):
-        if name not in cache:
-            cache[name] = diagnose(workbench_data(name), root / name, seed=0, n_boot=100,
-                                   candidates=library_candidates)
-        return cache[name]
+    def get(name: str, noise_seed: int | None = None):
+        default = noise_seed is None or noise_seed == WB_CASES[name]["seed"]
+        key = (name, None if default else int(noise_seed))
+        if key not in cache:
+            tag = name if default else f"{name}_noise{noise_seed}"
+            d, caught = diagnose_case(name, workbench_data(name, noise_seed=noise_seed),
+                                      root / tag, user_terms=default, figures=default)
+            cache[key] = d
+            if default:
+                get.warnings[name] = caught
+        return cache[key]
 
+    get.warnings = {}
     return get

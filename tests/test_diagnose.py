@@ -6,21 +6,17 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from granular_mpc.effects import Param, effect_info, register_effect, registered_effects
+from granular_mpc.effects import effect_info
 from granular_mpc.validation.diagnosis import (LARGE_HELDOUT_REDUCTION, MAX_DELTA_AICC,
                                                MIN_EFFECT_SIZE, Column, Design, Diagnosis,
                                                Regression, aicc, build_candidates,
                                                candidate_columns, candidate_stats, guard_jumps,
                                                load_diagnosis, localize)
-
-ROOT = Path(__file__).resolve().parent.parent
+from workbench import TEST_NOISE_SEEDS, USER_JOINT, USER_MOCAP, USER_OBLIQUE, USER_SENSOR_TAU
 
 
 # ----------------------------------------------------------------------------- statistics
@@ -54,15 +50,38 @@ def _two_candidate_stats(reg):
                             n_boot=50, seed=0, max_effects=1)
 
 
-def test_regression_ranks_a_real_column_and_rejects_a_null_one():
-    top, other = _two_candidate_stats(_design())
+#: seeds of the asserted synthetic designs; held-out seeds 100–139 (not asserted) gave
+#: |β̂ − 0.5| ≤ 0.0495, bootstrap-CI coverage 34/40, null false positives 0/40
+DESIGN_SEEDS = tuple(range(10))
+
+
+@pytest.fixture(scope="module")
+def design_stats():
+    """Candidate statistics of the real-column design for every seed of DESIGN_SEEDS."""
+    return {seed: _two_candidate_stats(_design(seed=seed)) for seed in DESIGN_SEEDS}
+
+
+@pytest.mark.parametrize("seed", DESIGN_SEEDS[:5])
+def test_regression_ranks_a_real_column_and_rejects_a_null_one(design_stats, seed):
+    top, other = design_stats[seed]
     assert top.effect == "cohesion" and top.significant and top.rank == 1
+    # derived: OLS standard error of β̂ ≈ σ/(sd(column)·√n) = 1/(1.31·√1800) ≈ 0.018;
+    # 0.05 ≈ 2.8 SE (held-out worst 0.0495 in 40 seeds)
     assert top.params["suction"].value == pytest.approx(0.5, abs=0.05)
-    lo, hi = top.params["suction"].boot_ci_lo, top.params["suction"].boot_ci_hi
-    assert lo < 0.5 < hi
+    # t ≈ 0.5/0.018 ≈ 27 ⇒ ΔAICc ≈ −t² ≈ −700 (held-out −550 … −730): −10 is the decision
+    # rule's scale, far from the measured values
     assert top.inclusion_probability > 0.9 and top.delta_aicc < -10
+    # a null column: its expected held-out change is O(1/n) (held-out |·| ≤ 0.004)
     assert not other.significant and other.heldout_error_reduction < 0.01
     assert other.inclusion_probability < 0.2
+
+
+def test_bootstrap_interval_covers_the_true_coefficient_at_its_rate(design_stats):
+    """The 95 % bootstrap interval (6 trial groups: it under-covers) contains β = 0.5 on at
+    least 7 of the 10 seeds: held-out coverage 34/40 = 0.85, and P(≤ 6 of 10 | 0.85) ≈ 5 %."""
+    covered = sum(top.params["suction"].boot_ci_lo < 0.5 < top.params["suction"].boot_ci_hi
+                  for top, _ in design_stats.values())
+    assert covered >= 7, covered
 
 
 def test_a_thin_effect_passes_by_its_heldout_reduction():
@@ -79,8 +98,10 @@ def test_a_thin_effect_passes_by_its_heldout_reduction():
     assert not top.significant and top.delta_aicc < MAX_DELTA_AICC
 
 
-def test_null_design_adds_nothing():
-    rows = _two_candidate_stats(_design(beta=0.0, seed=3))
+@pytest.mark.parametrize("seed", (3, 4, 5, 6, 7))
+def test_null_design_adds_nothing(seed):
+    """Held-out seeds 100–139: 0 false positives in 40."""
+    rows = _two_candidate_stats(_design(beta=0.0, seed=seed))
     assert not any(r.significant for r in rows)
 
 
@@ -278,6 +299,7 @@ def test_null_data_adds_nothing(workbench_diagnosis):
     d = workbench_diagnosis("null")
     assert d.added == []
     assert d.verdict.status in ("no_significant_missing_effect", "unexplained_structure")
+    # held-out (plant seed 121, noise 121/131): 0.8 %, 0.3 % → margin ≥ 10× (docs/testing.md)
     assert d.calibration.values["zeta"] == pytest.approx(1.36, rel=0.08)
 
 
@@ -285,6 +307,8 @@ def test_hidden_library_effect_is_found_and_fitted(workbench_diagnosis):
     d = workbench_diagnosis("cohesion")
     assert d.added[:1] == ["cohesion"] and d.ranking[0].effect == "cohesion"
     top = d.ranking[0]
+    # held-out (seed 122, noise 122/132): reduction 0.99/0.95, inclusion 1.0/1.0,
+    # suction error 7.6 %/9.1 %, best q_ held-out reduction 0.88/0.83, knee replay 0.89/0.86
     assert top.heldout_error_reduction > 0.3 and top.inclusion_probability > 0.8
     assert top.added and top.refined_params["suction"] == pytest.approx(3000.0, rel=0.2)
     # the affected channels' held-out error falls
@@ -298,6 +322,8 @@ def test_a_mis_set_parameter_is_calibrated_not_reported(workbench_diagnosis):
     d = workbench_diagnosis("zeta_off")
     cal = d.calibration
     assert cal.equation_error.initial["zeta"] == 1.36
+    # held-out (seed 123, noise 123/133): equation-error ζ off 3.0 %/4.4 %, calibrated ζ
+    # off 0.8 %/0.7 % (docs/testing.md)
     assert cal.equation_error.values["zeta"] == pytest.approx(1.768, rel=0.1)
     assert cal.values["zeta"] == pytest.approx(1.768, rel=0.08)
     lo, hi = cal.equation_error.ci_boot["zeta"]
@@ -314,74 +340,47 @@ def test_effect_outside_the_library_is_localised(workbench_diagnosis):
     top_channels = [c.channel for c in loc.significant_cells[:8]]
     assert lateral & set(top_channels), top_channels
     share = loc.by_channel
+    # held-out (seed 124, noise 124/134): max lateral share 0.83/0.83, min p 2e-30/3e-22
     assert max(share[c].systematic_share for c in lateral) > 0.15
     assert any(e.p_value < 1e-3 for c in lateral for e in loc.correlates[c][:3])
     assert d.localization.where
 
 
-def test_a_user_written_term_closes_the_gap(workbench_data, library_candidates, tmp_path):
-    from granular_mpc.validation.diagnose import diagnose      # the compatibility module
+def test_a_user_written_term_closes_the_gap(workbench_diagnosis, tmp_path):
+    """The "unknown" diagnosis had the user's oblique term (tests/workbench.py:
+    USER_OBLIQUE, lateral force −c·v_x) next to the library: it is added with the hidden
+    push's coefficient, and validating with it lowers the lateral errors."""
     from granular_mpc.validation.replay import validate
 
-    name = "_test_user_oblique"
-    if name not in registered_effects():
-        @register_effect(name, params={"c": Param(10.0, -200.0, 200.0, "N·s/m", "")})
-        def _oblique(o, s, p):
-            """The user's guess: lateral force −c·v_x on the sole."""
-            return (0.0, -p["c"] * s.v_c[0] * s.in_contact, 0.0)
-    data = workbench_data("unknown")
-    d = diagnose(data, tmp_path / "diag", candidates=library_candidates + [name], n_boot=60)
-    assert d.added[:1] == [name]
-    assert d.fitted_effects[name]["c"] == pytest.approx(18.0, rel=0.3)
-    v = validate(data, tmp_path / "val", effects=[name], params=tmp_path / "diag", n_boot=100)
+    d = workbench_diagnosis("unknown")
+    assert d.added[:1] == [USER_OBLIQUE]
+    # held-out (seed 124, noise 124/134): c off 2.3 %/2.8 % → margin ≥ 10×
+    assert d.fitted_effects[USER_OBLIQUE]["c"] == pytest.approx(18.0, rel=0.3)
+    v = validate(d.data, tmp_path / "val", effects=[USER_OBLIQUE], params=d.out_dir,
+                 n_boot=100)
     ba = v.report["before_after"]
     assert ba["intrusion_y"]["after"] < 0.8 * ba["intrusion_y"]["before"]
     assert ba["grf_y"]["after"] < ba["grf_y"]["before"]
 
 
-def test_user_terms_of_every_kind_are_candidates(workbench_data, library_candidates, tmp_path):
+def test_user_terms_of_every_kind_are_candidates(workbench_diagnosis):
     """A user sensor effect on the torques (crashed: KeyError 'tau_left_hip_abd'), a user
     joint effect and a sensor effect that changes no scored channel (an all-zero column,
-    ranked without a word before) next to the library, on data with hidden cohesion."""
-    from granular_mpc.effects import register_joint_effect, register_sensor_effect
-    from granular_mpc.effects import registered_names
-    from granular_mpc.validation.diagnose import diagnose
-
-    if "_test_dg_tau_gain" not in registered_names():
-        @register_sensor_effect("_test_dg_tau_gain",
-                                params={"gain": Param(1.1, 0.5, 2.0, "-", "torque gain")},
-                                neutral={"gain": 1.0})
-        def _tau_gain(cols, p, ctx):
-            """τ_meas = g τ."""
-            return {f"tau_{j}": p["gain"] * np.asarray(cols[f"tau_{j}"]) for j in ctx.joint_names}
-
-        @register_joint_effect("_test_dg_damping",
-                               params={"b": Param(0.05, 0.0, 2.0, "N·m·s/rad", "damping")})
-        def _damping(q_a, dq_a, p):
-            """Viscous joint damping."""
-            return -p["b"] * dq_a
-
-        @register_sensor_effect("_test_dg_mocap_offset",
-                                params={"dx": Param(0.01, -1.0, 1.0, "m", "mocap offset")})
-        def _mocap(cols, p, ctx):
-            """A motion-capture x offset: no scored channel sees it."""
-            return {"base_x": np.asarray(cols["base_x"]) + p["dx"]}
-
-    user = ["_test_dg_tau_gain", "_test_dg_damping", "_test_dg_mocap_offset"]
-    with pytest.warns(UserWarning, match="_test_dg_mocap_offset"):
-        d = diagnose(workbench_data("cohesion"), tmp_path / "d", n_boot=60,
-                     candidates=library_candidates + user, figures=False)
+    ranked without a word before) next to the library, on data with hidden cohesion (the
+    session's "cohesion" diagnosis has them as candidates: tests/workbench.py)."""
+    d = workbench_diagnosis("cohesion")
+    assert any(USER_MOCAP in w for w in workbench_diagnosis.warnings["cohesion"])
     ranked = [r.effect for r in d.ranking]
-    assert "_test_dg_tau_gain" in ranked and "_test_dg_damping" in ranked
-    assert "_test_dg_mocap_offset" not in ranked
-    assert any("_test_dg_mocap_offset" in w and "all zero" in w for w in d.warnings)
+    assert USER_SENSOR_TAU in ranked and USER_JOINT in ranked
+    assert USER_MOCAP not in ranked
+    assert any(USER_MOCAP in w and "all zero" in w for w in d.warnings)
     assert d.added[:1] == ["cohesion"]
     acc = {a.effect: a for a in d.acceptance}
     assert acc["cohesion"].accepted
     assert all(ch.after < ch.before for ch in acc["cohesion"].credited_channels.values())
     assert d.best_candidate.startswith("cohesion is")
     md = (d.out_dir / "report.md").read_text()
-    assert "Best candidate" in md and "_test_dg_mocap_offset" in md
+    assert "Best candidate" in md and USER_MOCAP in md
 
 
 def test_outputs_on_disk(workbench_diagnosis):
@@ -429,14 +428,18 @@ def test_cli_commands(workbench_data, tmp_path):
     assert res.exit_code == 2 and "did you mean 'cohesion'" in res.output
 
 
-@pytest.mark.slow
-def test_recovery_study_quick():
-    """bench/recovery.py --quick: two library effects and one null data set."""
-    proc = subprocess.run([sys.executable, str(ROOT / "bench" / "recovery.py"), "--quick"],
-                          capture_output=True, text=True, timeout=3600)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    figs = dict(ln.split(": ", 1) for ln in proc.stdout.splitlines() if ": " in ln
-                and not ln.startswith(" ") and ln.split(":")[0].isidentifier())
-    assert float(figs["rank1_rate"]) >= 0.99
-    assert float(figs["coef_within_15pct_rate"]) >= 0.99
-    assert float(figs["null_nothing_added_rate"]) >= 0.99
+@pytest.mark.parametrize("name", ["null", "cohesion"])
+def test_recovery_over_noise_seeds(workbench_diagnosis, name):
+    """Recovery rates over three noise realisations of each data set (tests/workbench.py:
+    TEST_NOISE_SEEDS; the first is the one the tests above use): on null data nothing is
+    added 3/3; hidden cohesion is ranked first and added 3/3 with its suction within the
+    stated budget (held-out study: docs/testing.md). The full study over plant seeds,
+    noise levels and every library effect is bench/recovery.py."""
+    diags = [workbench_diagnosis(name, noise_seed=s) for s in TEST_NOISE_SEEDS[name]]
+    if name == "null":
+        assert [d.added for d in diags] == [[]] * 3
+        return
+    for d in diags:
+        assert d.ranking[0].effect == "cohesion" and d.added[:1] == ["cohesion"]
+        # suction budget 20 %: held-out seeds (122, noise 122/132) gave 7.6 %, 9.1 %
+        assert d.ranking[0].refined_params["suction"] == pytest.approx(3000.0, rel=0.2)

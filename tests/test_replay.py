@@ -39,6 +39,7 @@ def test_stance_windows(clean_windows):
         assert not lead.in_contact and -3e-3 < -lead.depth <= 0.0 + 1e-12
         assert abs(lead.surface) < 1e-9 and np.linalg.norm(lead.point[:2]) < 1e-9
         # the other foot carries the robot, buried as its last stance left it
+        # held-out (seed 121): trailing force ≥ 97 N, depth 26.7–29.7 mm
         assert trail.in_contact and trail.force[2] > 20.0 and 0.01 < trail.depth < 0.06
         np.testing.assert_allclose(trail.e.sum(axis=0) * -rm.contact_stiffness, trail.force)
 
@@ -54,21 +55,32 @@ def test_noise_free_replay_reproduces_the_plant(clean_windows):
         for c in err:
             err[c].append(out[c] - w.meas[c])
     rms = {c: float(np.sqrt(np.mean(np.concatenate(v) ** 2))) for c, v in err.items()}
+    # held-out (null, plant seed 121): knees 0.0084/0.0076 rad, intrusion 0.34 mm, grf_z
+    # 2.8 N → margins 2.4×, 1.8×, 2.9× (docs/testing.md)
     assert rms["q_left_knee"] < 0.02 and rms["q_right_knee"] < 0.02
     assert rms["intrusion_z"] < 0.6e-3
     assert rms["grf_z"] < 8.0
 
 
 def test_variants_change_the_replay(clean_windows):
+    """On every stance: a softer sand (ζ 1.36 → 0.9) sinks deeper, a cohesive one holds a
+    knee back."""
     ds, rm, ws = clean_windows
-    w = ws[3]
-    base = replay_granular(rm, w, Variant())
-    soft = replay_granular(rm, w, Variant(theta={"zeta": 0.9}))
-    assert soft["intrusion_z"][-1] > base["intrusion_z"][-1] + 3e-3        # softer: deeper
-    coh = replay_granular(rm, w, effect_variant([(*resolve_effect_specs(["cohesion"])[0],)]))
-    assert np.max(np.abs(coh["q_right_knee"] - base["q_right_knee"])) > 0.01
+    coh_variant = effect_variant([(*resolve_effect_specs(["cohesion"])[0],)])
+    for w in ws:
+        base = replay_granular(rm, w, Variant())
+        soft = replay_granular(rm, w, Variant(theta={"zeta": 0.9}))
+        # derived: the RFT force is linear in ζ and (near the operating point) in depth, so
+        # at the same load the peak depth scales by 1.36/0.9 (+51 %); asserted: at least
+        # half of it (held-out seed 121: +16.4 … +19.2 mm on a ≈ 30 mm peak, ≥ 2× margin)
+        gain = 0.5 * (1.36 / 0.9 - 1.0) * base["intrusion_z"].max()
+        assert soft["intrusion_z"].max() > base["intrusion_z"].max() + gain, w.index
+        coh = replay_granular(rm, w, coh_variant)
+        # held-out: one knee moves 0.66 … 0.72 rad on every window; bound 0.1 rad (6×)
+        moved = max(np.max(np.abs(coh[c] - base[c])) for c in ("q_left_knee", "q_right_knee"))
+        assert moved > 0.1, w.index
     with pytest.raises(ConfigError, match="unknown terrain parameter"):
-        replay_granular(rm, w, Variant(theta={"zetta": 1.0}))
+        replay_granular(rm, ws[3], Variant(theta={"zetta": 1.0}))
 
 
 def test_pool_matches_serial(clean_windows):
@@ -85,8 +97,12 @@ def test_pool_matches_serial(clean_windows):
 def reports(workbench_data, tmp_path_factory):
     data = workbench_data("cohesion")
     root = tmp_path_factory.mktemp("validate")
-    out = {m: validate(data, root / m, model=m, n_boot=200) for m in ("granular", "rigid", "planar")}
-    out["added"] = validate(data, root / "added", effects=["cohesion:suction=3000"], n_boot=200)
+    out = {m: validate(data, root / m, model=m, n_boot=200) for m in ("rigid", "planar")}
+    # the granular model's tables come from the same validation as "granular+effects" (its
+    # baseline is the granular model: one set of granular replays, not two)
+    out["added"] = validate(data, root / "granular", effects=["cohesion:suction=3000"],
+                            n_boot=200)
+    out["granular"] = out["added"]
     return root, out
 
 
@@ -114,6 +130,7 @@ def test_models_compare_as_the_paper_says(reports):
     than the granular model on sand data; all three models replay every stance."""
     _, rep = reports
     g, rg, pl = (rep[m].report["overall_rmse"][m] for m in ("granular", "rigid", "planar"))
+    # held-out (cohesion, seed 122): rigid/granular intrusion 21×, grf_z 3.3×; planar/rigid 0.06
     assert rg["intrusion_z"] > 5 * g["intrusion_z"]
     assert rg["grf_z"] > g["grf_z"]
     for m in ("granular", "rigid", "planar"):
@@ -126,6 +143,7 @@ def test_adding_the_true_effect_lowers_the_error(reports):
     _, rep = reports
     ba = rep["added"].report["before_after"]
     for c in ("q_left_knee", "q_right_knee", "q_left_hip_pitch"):
+        # held-out (seed 122): after/before 0.18, 0.12, 0.41 → margin ≥ 1.7×
         assert ba[c]["after"] < 0.7 * ba[c]["before"], (c, ba[c])
     assert set(rep["added"].tables) == {"granular", "granular+effects"}
 
