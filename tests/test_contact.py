@@ -348,8 +348,9 @@ def test_jit_and_vm_give_identical_forces(sand, robot_config, monkeypatch):
         states = rng.normal(0.0, 1e-4, (sand.contact.n_slices, sand.contact.state_size))
         states[:, 6] = rng.integers(0, 2, sand.contact.n_slices)
         x[contact_mod.N_KIN: contact_mod.N_KIN + states.size] = states.ravel()
-        x[contact_mod.N_KIN + states.size] = DT
-        x[contact_mod.N_KIN + states.size + 1:] = theta
+        x[sand.contact.dt_index] = DT
+        x[sand.contact.foot_index] = rng.integers(0, 2)
+        x[sand.contact.theta_start:] = theta
         a = np.array(jit_fn(x)).ravel()
         b = np.array(vm.function(x)).ravel()
         np.testing.assert_allclose(a, b, rtol=1e-11, atol=1e-11)

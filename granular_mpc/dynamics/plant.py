@@ -127,6 +127,8 @@ class Plant:
                 contact.skip(i)
                 d.fext[jid] = _ZERO_FORCE
                 continue
+            # foot i's buffers: its law's input also holds i (0 left, 1 right), which
+            # per-foot terrain effects read as PatchState.foot
             kin = contact.feet[i].kin
             kin[0:3] = p
             kin[3:12] = oMf.rotation.ravel("F")

@@ -6,9 +6,9 @@ symbolic functions that :mod:`granular_mpc.dynamics.compiled` compiles to C:
 * ``step(x, u, θ, w) -> (x⁺, aux)``: one step ``dt`` of the reference plant — the joint PD
   law, the Verlet velocity correction ``Δa = M⁻¹Δτ``, the drift, forward kinematics of
   both feet, the terrain law of every patch (the terrain model's own compiled contact
-  expression, effects included), joint end stops, joint damping, the joint-effect hook,
-  the trunk wrench and the articulated-body algorithm (:mod:`.rigid_body_sx`), then the
-  kick; the semi-implicit Euler integrator likewise;
+  expression, effects included, told which foot it serves), joint end stops, joint
+  damping, the joint-effect hook, the trunk wrench and the articulated-body algorithm
+  (:mod:`.rigid_body_sx`), then the kick; the semi-implicit Euler integrator likewise;
 * ``start(x, u, θ, w) -> x``: what the reference does at its very first Verlet step
   (evaluate and commit the acceleration and the contact once before stepping).
 
@@ -120,7 +120,9 @@ class StepLayout:
 
 def symbolic_contact(terrain) -> ca.Function:
     """The terrain model's per-foot contact law as a CasADi SX function
-    (``terrain.contact.symbolic``, the function the terrain compiles for the plant)."""
+    (``terrain.contact.symbolic``, the function the terrain compiles for the plant; input
+    ``[kin | patch states | dt | foot | θ]``, see
+    :class:`~granular_mpc.terrain.contact.CompiledContact`)."""
     return terrain.contact.symbolic
 
 
@@ -259,7 +261,8 @@ class StepBuilder:
             p, R, vW, wW = rb.frame_kinematics(pl, vel, jid, R_f, p_f)
             kin = ca.vertcat(p, ca.vec(R), vW, wW)
             assert kin.shape[0] == N_KIN
-            out = self.contact_fn(ca.vertcat(kin, st, self.dt, theta_f))
+            # the terrain law's input [kin | states | dt | foot | θ] (foot: 0 left, 1 right)
+            out = self.contact_fn(ca.vertcat(kin, st, self.dt, float(foot), theta_f))
             in_contact = ca.mmax(ca.vertcat(*[st[k * S + 6] for k in range(n)])) > 0.5
             # a swing foot whose sole cannot reach the surface: zero force, state reset
             live = ca.if_else(ca.logic_and(p[2] > clear, ca.logic_not(in_contact)), 0.0, 1.0)

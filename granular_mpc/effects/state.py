@@ -36,6 +36,16 @@ class PatchState:
         dt: plant step [s].
         depth_max: deepest depth of this patch since touchdown [m].
         t_stance: time since touchdown [s].
+        foot: which foot the patch belongs to: 0.0 left, 1.0 right (a number, or a CasADi
+            expression in the compiled contact law, so write ``o.if_else(s.foot > 0.5, …)``
+            or multiply by :attr:`is_right` / :attr:`is_left`, never ``if s.foot:``).
+        depth_rate: rate at which the sole material at the contact point penetrates the
+            free surface, −v_c·n with n the surface's upward normal (small slopes) [m/s]
+            (> 0 sinking, < 0 rising).
+
+    Per-foot and depth-profile terms (a worn right sole, left/right tracks of different
+    sand, a loose top layer over a harder one) read :attr:`foot` and :attr:`depth`; see
+    :mod:`granular_mpc.effects.variants` and docs/validation.md.
     """
 
     depth: Any
@@ -54,6 +64,18 @@ class PatchState:
     dt: Any
     depth_max: Any = 0.0
     t_stance: Any = 0.0
+    foot: Any = 0.0
+    depth_rate: Any = 0.0
+
+    @property
+    def is_right(self) -> Any:
+        """1 on the right foot's patches, 0 on the left's (a number or an expression)."""
+        return self.foot
+
+    @property
+    def is_left(self) -> Any:
+        """1 on the left foot's patches, 0 on the right's (a number or an expression)."""
+        return 1.0 - self.foot
 
 
 #: a terrain-force effect: ``fn(o, s, p) -> (fx, fy, fz)`` [N] in W, ``o`` the math namespace

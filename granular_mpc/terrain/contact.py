@@ -17,7 +17,9 @@ in sand without creeping, and its deflection (W/K ≈ 0.3 mm) is far below the s
 
 The law for the patches of one foot is one CasADi SX function, compiled to C when a
 compiler is available and evaluated through CasADi's buffer interface on pre-allocated
-NumPy arrays (a few µs per foot).
+NumPy arrays (a few µs per foot). Both feet use the same function; the foot's identity
+(0 left, 1 right) is one of its inputs, so terrain-force effects can act on one foot only
+(:attr:`~granular_mpc.effects.PatchState.foot`).
 """
 
 from __future__ import annotations
@@ -141,7 +143,11 @@ class CompiledContact:
     The model part (immutable): the CasADi function, layout, parameter names. Call
     :meth:`new_data` for the changing part (state, buffers). Input layout::
 
-        [foot kinematics (N_KIN) | patch states (n × S) | dt | θ]
+        [foot kinematics (N_KIN) | patch states (n × S) | dt | foot | θ]
+
+    with ``foot`` 0 for the left foot and 1 for the right (what effects read as
+    ``PatchState.foot``); :attr:`dt_index`, :attr:`foot_index` and :attr:`theta_start`
+    give the positions.
 
     Output per patch: force (3), contact point (3), new state (S), diagnostics (DIAG_NAMES).
     """
@@ -164,12 +170,16 @@ class CompiledContact:
         S = N_BASE_STATE
         self.state_size = S
         n = self.n_slices
-        self.n_in = N_KIN + n * S + 1 + n_theta
+        self.dt_index = N_KIN + n * S
+        self.foot_index = self.dt_index + 1
+        self.theta_start = self.foot_index + 1
+        self.n_in = self.theta_start + n_theta
         x = ca.SX.sym("x", self.n_in)
         kin = x[0:N_KIN]
         states = [x[N_KIN + k * S: N_KIN + (k + 1) * S] for k in range(n)]
-        dt = x[N_KIN + n * S]
-        theta = x[N_KIN + n * S + 1:]
+        dt = x[self.dt_index]
+        foot = x[self.foot_index]
+        theta = x[self.theta_start:]
         th = {name: theta[i] for i, name in enumerate(self.param_names)}
         outs = []
         for k in range(n):
@@ -195,12 +205,15 @@ class CompiledContact:
             intrusion = (geom.p_c[0] - c0_new[0], geom.p_c[1] - c0_new[1], c0_new[2] - geom.p_c[2])
             new_dmax = ca.if_else(was, o.fmax(depth_max, geom.depth), geom.depth)
             new_ts = ca.if_else(was, t_stance + dt, 0.0)
+            slope = (th["surface_slope_x"], th["surface_slope_y"])
+            depth_rate = slope[0] * geom.v_c[0] + slope[1] * geom.v_c[1] - geom.v_c[2]
             pstate = PatchState(depth=geom.depth, in_contact=on, p_c=geom.p_c, v_c=geom.v_c,
                                 a_c=a_c, intrusion=intrusion, heading=geom.heading,
                                 lateral=geom.lateral, f_terrain=force,
                                 f_yield_z=law_out.f_cap_z, area_h=law_out.area_h,
                                 width=slice_width, density=density, dt=dt,
-                                depth_max=new_dmax, t_stance=new_ts)
+                                depth_max=new_dmax, t_stance=new_ts, foot=foot,
+                                depth_rate=depth_rate)
             for eff, _values in effects:
                 p = {name: th[f"{eff.name}.{name}"] for name in eff.params}
                 fe = eff.force(o, pstate, p)
@@ -242,26 +255,28 @@ class CompiledContact:
 
 
 class _FootBuffers:
-    """Input/output arrays of one foot, bound to the compiled function's buffers."""
+    """Input/output arrays of one foot (``foot`` 0 left, 1 right: fixed in its input),
+    bound to the compiled function's buffers."""
 
-    def __init__(self, model: CompiledContact, params: np.ndarray) -> None:
+    def __init__(self, model: CompiledContact, params: np.ndarray, foot: int) -> None:
         n, S = model.n_slices, model.state_size
         self.inp = np.zeros(model.n_in)
         self.out = np.zeros(model.n_out)
-        self.inp[N_KIN + n * S + 1:] = params
+        self.inp[model.theta_start:] = params
+        self.inp[model.foot_index] = float(foot)
         self._buf, self._call = model.function.buffer()
         self._buf.set_arg(0, memoryview(self.inp))
         self._buf.set_res(0, memoryview(self.out))
         self.kin = self.inp[0:N_KIN]
         self.state = self.inp[N_KIN: N_KIN + n * S].reshape(n, S)
-        self.params = self.inp[N_KIN + n * S + 1:]
+        self.params = self.inp[model.theta_start:]
         out = self.out[: n * model.n_out_patch].reshape(n, model.n_out_patch)
         self.wrench_local = self.out[n * model.n_out_patch:]   # (f, m) in the foot frame
         self.force = out[:, 0:3]
         self.point = out[:, 3:6]
         self.new_state = out[:, 6:6 + S]
         self.diag = out[:, 6 + S:]
-        self.dt_index = N_KIN + n * S
+        self.dt_index = model.dt_index
 
 
 class ContactData:
@@ -274,7 +289,7 @@ class ContactData:
 
     def __init__(self, model: CompiledContact) -> None:
         self.model = model
-        self.feet = (_FootBuffers(model, model.param_values), _FootBuffers(model, model.param_values))
+        self.feet = tuple(_FootBuffers(model, model.param_values, foot) for foot in (0, 1))
         self.active = [False, False]
 
     def set_dt(self, dt: float) -> None:
