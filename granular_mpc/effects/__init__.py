@@ -16,6 +16,9 @@ them as candidates (``granular-mpc diagnose``); a terrain config switches terrai
   ``depth_hardening``, ``elastic_unloading``), :mod:`.joint` (``joint_friction``),
   :mod:`.sensor` (``force_sensor_bias``), :mod:`.geometry` (``terrain_slope``), each with
   the function that applies its kind.
+* :mod:`.measurement` (opt-in, not imported here): the measurement model as sensor-effect
+  candidates (per-joint torque gain / offset, encoder offsets, force-sensor gain, torque
+  time offset); importing it registers them.
 
 Importing this package registers the library.
 """

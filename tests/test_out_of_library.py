@@ -1,0 +1,155 @@
+"""The out-of-library benchmark's case definitions and table assembly (bench/out_of_library.py),
+without any diagnosis: each form registers with the plugin API, moves its channel when
+switched on and nothing when off, and the targets table counts what the rows say."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from granular_mpc.effects import (PatchState, SensorContext, apply_sensor_effects, effect_info,
+                                  joint_torque_function)
+from granular_mpc.terrain.closed_form import FLOAT, casadi_ops
+
+BENCH = Path(__file__).resolve().parents[1] / "bench" / "out_of_library.py"
+
+
+@pytest.fixture(scope="module")
+def ool():
+    spec = importlib.util.spec_from_file_location("bench_out_of_library", BENCH)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod                    # dataclasses resolve their module
+    spec.loader.exec_module(mod)
+    mod.register_forms()
+    return mod
+
+
+def _patch() -> PatchState:
+    """A sinking sole moving forward, 25 mm deep, 1 mm left of its touchdown track."""
+    return PatchState(depth=0.025, in_contact=1.0, p_c=(0.1, 0.0, -0.025),
+                      v_c=(0.2, 0.05, -0.3), a_c=(0.0, 0.0, 0.0), intrusion=(0.004, 0.001, 0.025),
+                      heading=(1.0, 0.0, 0.0), lateral=(0.0, 1.0, 0.0),
+                      f_terrain=(3.0, 0.0, 60.0), f_yield_z=60.0, area_h=2e-3, width=0.03,
+                      density=1660.0, dt=5e-4, depth_max=0.025, t_stance=0.05)
+
+
+AXIS = {"x": 0, "y": 1, "z": 2}
+
+
+def test_at_least_eight_distinct_forms_of_every_kind(ool):
+    assert len(ool.FORMS) >= 8
+    assert len({f.name for f in ool.FORMS}) == len(ool.FORMS)
+    assert {f.kind for f in ool.FORMS} == {"terrain_force", "joint", "sensor"}
+    for f in ool.FORMS:
+        assert effect_info(f.hidden).kind == f.kind == effect_info(f.user).kind
+        assert f.magnitudes[0] != f.magnitudes[1]
+        lo, hi = f.bounds
+        assert lo <= 0.5 * f.magnitudes[0] <= hi and lo <= f.magnitudes[1] <= hi
+        # none of them is in the library
+        assert f.hidden not in ool.LIBRARY and f.user not in ool.LIBRARY
+    assert set(ool.QUICK_FORMS) <= {f.name for f in ool.FORMS} and len(ool.QUICK_FORMS) == 8
+
+
+def test_terrain_forms_push_along_their_channel_and_compile(ool):
+    ca = pytest.importorskip("casadi")
+    s = _patch()
+    for f in (f for f in ool.FORMS if f.kind == "terrain_force"):
+        fn = effect_info(f.hidden).fn
+        axis = AXIS[f.channels[0][-1]]                  # intrusion_z → z …
+        on = fn(FLOAT, s, {f.param: f.magnitudes[1]})
+        off = fn(FLOAT, s, {f.param: 0.0})
+        assert abs(on[axis]) > 0.2, (f.name, on)         # > 0.2 N per patch at this state
+        assert max(abs(v) for v in off) == 0.0, f.name
+        # the same source compiles (CasADi) and gives the same force
+        sym = fn(casadi_ops(), s, {f.param: ca.SX(f.magnitudes[1])})
+        got = [float(ca.evalf(ca.SX(v))) for v in sym]
+        assert got == pytest.approx(list(on), rel=1e-9, abs=1e-12), f.name
+
+
+def test_joint_forms_add_torque_where_they_should(ool):
+    q = np.array([-0.12, -0.7, 1.6, 0.12, -0.7, 1.2])
+    dq = np.array([0.02, -0.03, 0.01, -0.02, 0.04, -0.01])      # slow: stiction acts
+    for name, joints in (("stiction", range(6)), ("knee_spring", ool.KNEES)):
+        f = ool.FORM_BY_NAME[name]
+        info = effect_info(f.hidden)
+        tau = joint_torque_function([(info, {f.param: f.magnitudes[0]})])(q, dq)
+        assert np.all(np.abs(tau[list(joints)]) > 0.01), (name, tau)
+        others = [i for i in range(6) if i not in joints]
+        assert np.all(tau[others] == 0.0)
+        off = joint_torque_function([(info, {f.param: 0.0})])(q, dq)
+        assert np.all(off == 0.0)
+    # stiction opposes the motion and vanishes at speed
+    f = ool.FORM_BY_NAME["stiction"]
+    fn = effect_info(f.hidden).fn
+    assert np.all(fn(q, dq, {f.param: 0.5}) * dq < 0)
+    assert np.all(np.abs(fn(q, 3.0 * np.ones(6), {f.param: 0.5})) < 1e-6)
+
+
+def test_sensor_forms_change_only_their_columns(ool):
+    n = 6
+    joints = ("left_hip_abd", "left_hip_pitch", "left_knee", "right_hip_abd",
+              "right_hip_pitch", "right_knee")
+    cols = {f"{k}_{j}": np.linspace(1.0, 2.0, n) for k in ("q", "dq", "tau") for j in joints}
+    cols |= {f"grf_{a}": np.full(n, 80.0) for a in "xyz"}
+    ctx = SensorContext(np.array(["left"] * 3 + ["right"] * 3), np.arange(n) * 0.01, joints)
+    expect = {"torque_gain": {f"tau_{j}" for j in joints}, "encoder_offset": {"q_left_knee"},
+              "grf_bias_left": {"grf_z"}}
+    for name, changed_cols in expect.items():
+        f = ool.FORM_BY_NAME[name]
+        out = apply_sensor_effects(cols, [(effect_info(f.hidden), {f.param: f.magnitudes[0]})],
+                                   ctx)
+        changed = {c for c in cols if not np.array_equal(out[c], cols[c])}
+        assert changed == changed_cols, name
+    f = ool.FORM_BY_NAME["grf_bias_left"]
+    out = apply_sensor_effects(cols, [(effect_info(f.hidden), {f.param: 5.0})], ctx)
+    assert np.allclose(out["grf_z"], [85.0] * 3 + [80.0] * 3)
+
+
+def test_cases_quick_and_full(ool):
+    quick = ool.build_cases(ool.QUICK_FORMS, [1], 1, False, ool.MISMATCHES[:2])
+    assert len(quick) == 10 and [c.group for c in quick].count("null") == 2
+    full = ool.build_cases([f.name for f in ool.FORMS], [1, 2, 3], 2, True, ool.MISMATCHES)
+    assert len(full) == len(ool.FORMS) * 2 * 3 + len(ool.PAIRS) + len(ool.MISMATCHES)
+    assert len({c.tag for c in full}) == len(full)
+    pair = next(c for c in full if c.group == "pair")
+    assert len(pair.effects()) == 2 and pair.effects()[0] == pair.partner
+    assert next(c for c in full if c.group == "null").effects() == []
+
+
+def _run(status, added, replay, rank1="", answer=False, fitted=None, worsened=()):
+    return {"status": status, "added": list(added), "rank1": rank1 or (added[0] if added else ""),
+            "rank1_added": bool(added), "is_answer": answer, "best_candidate": "",
+            "fitted": fitted or {}, "replay": replay, "worsened": list(worsened),
+            "sigma": {"intrusion_z": 0.001, "grf_z": 5.0}, "ranks": {}}
+
+
+def test_scores_and_targets_table(ool):
+    vd = ool.Case("vdamp_m0_s1", 1, "vdamp", 10.0)
+    found = {"case": vd.__dict__,
+             "lib": _run("missing_effect", ["cohesion"], {"intrusion_z": [0.008, 0.006]},
+                         answer=True),
+             "proposal": {"file": "proposed_effect.py", "pointed_to": False,
+                          "terms": {"z:v_z": -13.0}},
+             "fb": _run("partially_explained", ["proposed_force"],
+                        {"intrusion_z": [0.008, 0.002], "grf_z": [15.0, 10.0]},
+                        fitted={"proposed_force": {"z_v_z": -11.0}}, worsened=["x"])}
+    s = ool.score(found)
+    assert s["channel"] == "intrusion_z" and s["found"] and s["wrong_answer"]
+    assert s["fb_red"] == pytest.approx(0.75) and s["coef_err"] == pytest.approx(-0.1)
+    null = {"case": ool.Case("null_phi_s_deg_s101", 101, mismatch="terrain.phi_s_deg=33").__dict__,
+            "lib": _run("no_missing_effect", [], {}), "proposal": None, "fb": None}
+    assert not ool.score(null)["null_added"] and math.isnan(ool.score(null)["coef_err"])
+    figs = ool.figures([found, null])
+    assert figs["ool_found_rate"] == 1.0 and figs["ool_wrong_answer_rate"] == 1.0
+    assert figs["null_added_rate"] == 0.0 and figs["added_worsening"] == 1
+    table = ool.targets_table([found, null])
+    assert "| out-of-library: a wrong term presented as the answer | 1/1 |" in table
+    assert "| null sets: a term added | 0/1 |" in table
+    cases = ool.case_table([found, null])
+    assert "intrusion_z: 0.008 → 0.006 / 0.002" in cases and "[law coef err -10 %]" in cases
+    assert "| z: v_z |" in cases and "proposed_force (1 terms; z_v_z=-11)" in cases
