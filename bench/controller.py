@@ -22,7 +22,12 @@ Python loops (one ``computeAllTerms`` per WBC tick, the MPC's condensed matrices
 broadcast blocks) and solves the MPC's QP with ProxSuite's primal-dual LDLT backend (half
 the warm-started iterations of the automatic choice); what is left is ProxSuite's solve
 (MPC) and NumPy's per-call overhead on 24×24 arrays (WBC). One BLAS thread: the matrices
-are tiny and threading costs more than it saves (MPC tick 16 → 2.4 ms).
+are tiny and threading costs more than it saves (MPC tick 16 → 2.4 ms). Since then the
+WBC's assembly is generated C (``control/wbc_qp.py``) and the plant compiled: of a 4 s walk
+the WBC's ProxSuite solves ≈ 16 %, the controller's remaining Python ≈ 18 %, the compiled
+assembly with Pinocchio ≈ 10 %, the plant ≈ 11 %, the log rows ≈ 10 % (docs/speed.md).
+``mpc_solve_ms_mean`` and ``realtime_factor_without_mpc_solve`` separate the code's speed
+from the realisation's rare slow MPC solves (≈ 50–100 ms each, where the loop meets them).
 ``proxsuite_build`` names the ProxSuite binding in use: ``GRANULAR_MPC_PROXSUITE=generic``
 selects the bit-reproducible build (≈ 30 % slower MPC solves, docs/user-guide.md).
 Two revisions side by side: ``bench/compare_revisions.py``.
@@ -72,6 +77,13 @@ def closed_loop_figures(seconds: float, speed: float, terrain: str, plant: str |
         "mpc_rate_hz": len(mpc) / max(sim_time - sim.controller.schedule.start, 1e-9),
         "wbc_rate_hz": len(wbc) / sim_time,
         "realtime_factor": sim_time / wall,
+        # the MPC's rare slow solves (warm-started ProxSuite running into thousands of inner
+        # iterations, ≈ 50–100 ms each) depend on the realisation of the closed loop, which
+        # rounding-level changes anywhere alter: the mean solve and the real-time factor
+        # without the MPC's solve time separate the code's speed from that luck
+        "mpc_solve_ms_mean": float(np.mean([r.solve_ms for r in mpc])),
+        "realtime_factor_without_mpc_solve":
+            sim_time / max(wall - 1e-3 * sum(r.solve_ms for r in mpc), 1e-9),
         "qp_failures": float(state.controller.qp_failures),
         "fell": float(state.fall is not None),
         "final_x_m": float(state.plant.q[0]),

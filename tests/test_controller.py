@@ -22,6 +22,8 @@ from granular_mpc.control.solvers.proxqp import proxsuite_build
 from granular_mpc.dynamics import Plant
 from granular_mpc.dynamics.plant import PlantData
 from granular_mpc.robot.kinematics import balanced_stance
+from granular_mpc.terrain.closed_form import FLOAT
+from granular_mpc.terrain.contact import slice_geometry
 
 #: name of ProxSuite's generic (SSE2, deterministic) binding module
 GENERIC_BINDING = "proxsuite_pywrap"
@@ -156,3 +158,28 @@ def test_rigid_assumption_controller_on_sand_uses_rigid_limits(biped, sand, rigi
     assert w.worst_tilt_deg > 15.0
     assert w.plant.q[2] < 0.3
     assert w.ctrl.qp_failures > 0
+
+
+def test_foot_points_are_the_lowest_points_of_the_sole_slices(biped, sand):
+    """The controller's vectorised contact points equal the plant's slice geometry
+    (:func:`~granular_mpc.terrain.contact.slice_geometry`, float evaluation) bit for bit,
+    over random configurations including soles pitched beyond the arc's half-angle."""
+    ctrl = WalkingController.build(ControllerConfig(), CommandConfig(), biped, sand)
+    foot = biped.config.foot
+    rng = np.random.default_rng(3)
+    pd = biped.create_data()
+    for trial in range(40):
+        q = balanced_stance(biped)
+        quat = np.array([*rng.normal(0.0, 0.3, 3), 1.0])
+        q[3:7] = quat / np.linalg.norm(quat)
+        q[7:] += rng.normal(0.0, 0.4 if trial % 2 else 1.5, biped.model.nq - 7)
+        pin.framesForwardKinematics(biped.model, pd, q)
+        feet = ctrl.foot_points(pd)
+        for i, side in enumerate(("left", "right")):
+            oMf = pd.oMf[biped.foot_frame[side]]
+            kin = list(oMf.translation) + list(oMf.rotation.ravel("F")) + [0.0] * 6
+            ref = np.array([slice_geometry(FLOAT, kin, float(y), foot.radius,
+                                           foot.half_angle, 0.0).p_c
+                            for y in biped.slice_offsets])
+            np.testing.assert_array_equal(feet[i].points, ref)
+            np.testing.assert_array_equal(feet[i].offsets, ref - oMf.translation)

@@ -204,3 +204,16 @@ def test_sinkage_prediction_is_plastic(sand):
 def test_skew_is_the_cross_product():
     r, f = np.array([0.1, -0.2, 0.3]), np.array([2.0, 1.0, -1.0])
     np.testing.assert_allclose(skew(r) @ f, np.cross(r, f))
+
+
+def test_capacities_equal_capacity_point_by_point(sand, rigid):
+    """The vectorised capacity (the controller's force cap, one interpolation for both
+    feet) is the scalar one at every depth, bit for bit: above the surface, on and between
+    the tabulated depths, beyond the table; on rigid ground the polytope's bound."""
+    rng = np.random.default_rng(5)
+    for terrain in (sand, rigid):
+        gm = ground_model(terrain, MPCConfig())
+        depths = np.concatenate([[-0.01, 0.0, 1e-9], rng.uniform(-0.01, 0.3, 500)])
+        expected = np.array([gm.capacity(float(d)) for d in depths])
+        np.testing.assert_array_equal(gm.capacities(depths), expected)
+        assert gm.capacities(depths).shape == depths.shape

@@ -1,15 +1,21 @@
 """Whole-body QP: its torques and forces satisfy the rigid-body dynamics, respect the
 limits, keep swing feet force-free and respect the sand's present capacity."""
 
+import dataclasses
+import os
+
 import numpy as np
 import pinocchio as pin
 import pytest
+
+from granular_mpc.codegen import compiler
 
 from granular_mpc.config import CommandConfig, ControllerConfig
 from granular_mpc.control.controller import WalkingController
 from granular_mpc.control.solvers.proxqp import QPSolution, QPStatus
 from granular_mpc.control.wbc import WBCReference
 from granular_mpc.robot.kinematics import balanced_stance
+from granular_mpc.rotations import rot_z
 
 
 def record_solutions(data) -> list[QPSolution]:
@@ -121,3 +127,71 @@ def test_a_failed_qp_holds_the_previous_torques(setup, biped):
     tau1 = ctrl.wbc.solve(data, q, v, ref, feet)
     assert data.failures == 1
     np.testing.assert_allclose(tau1, tau0)
+
+
+def record_problems(data) -> list[dict]:
+    """Wrap the WBC's solver so a copy of every QP it is handed is kept."""
+    seen: list[dict] = []
+    solve = data.solver.solve
+
+    def spy(problem):
+        seen.append({k: np.array(getattr(problem, k)) for k in QP_ARRAYS})
+        return solve(problem)
+
+    data.solver.solve = spy
+    return seen
+
+
+QP_ARRAYS = ("H", "g", "A", "b", "C", "l", "u", "lb", "ub")
+
+
+@pytest.mark.parametrize("terrain_name", ["sand", "rigid"])
+def test_compiled_assembly_builds_the_numpy_reference_qp(biped, sand, rigid, terrain_name):
+    """The compiled QP assembly (``assembly="compiled"``, the default) hands ProxSuite the
+    QP of the NumPy assembly (the reference, ``assembly="numpy"``) over random states and
+    references, in every stance pair, with and without a force cap."""
+    if compiler() is None or os.environ.get("GRANULAR_MPC_JIT", "1") == "0":
+        pytest.skip("nothing compiled (no C compiler or GRANULAR_MPC_JIT=0): NumPy assembly")
+    terrain = sand if terrain_name == "sand" else rigid
+    ctrl = WalkingController.build(ControllerConfig(), CommandConfig(), biped, terrain)
+    wbc_c = ctrl.wbc
+    wbc_n = dataclasses.replace(ctrl.wbc, assembly="numpy")
+    dc, dn = wbc_c.new_data(), wbc_n.new_data()
+    assert dc.assembly is not None and dn.assembly is None
+    qp_c, qp_n = record_problems(dc), record_problems(dn)
+    rng = np.random.default_rng(7)
+    nv = biped.model.nv
+    stances = [(True, True), (True, False), (False, True), (False, False)]
+    taus = []
+    for trial in range(24):
+        stance = stances[trial % 4]
+        q = balanced_stance(biped)
+        q[:3] += rng.normal(0.0, 0.02, 3)
+        quat = np.array([*rng.normal(0.0, 0.05, 3), 1.0])
+        q[3:7] = quat / np.linalg.norm(quat)
+        q[7:] += rng.normal(0.0, 0.2, nv - 6)
+        v = rng.normal(0.0, 0.5, nv)
+        pd = dc.pin
+        pin.framesForwardKinematics(biped.model, pd, q)
+        feet = ctrl.foot_points(pd)
+        forces = rng.uniform(-5.0, 60.0, (2, 2, 3))
+        ref = WBCReference(
+            com=ctrl.biped.com(q) + rng.normal(0.0, 0.01, 3), com_vel=rng.normal(0.0, 0.1, 3),
+            com_acc=rng.normal(0.0, 0.5, 3), R_trunk=rot_z(rng.uniform(-0.3, 0.3)),
+            omega=rng.normal(0.0, 0.1, 3), stance=stance, forces=forces,
+            swing_pos=rng.normal(0.0, 0.1, (2, 3)), swing_vel=rng.normal(0.0, 0.2, (2, 3)),
+            swing_acc=rng.normal(0.0, 1.0, (2, 3)), sink_accel=rng.normal(0.0, 0.5, 2),
+            force_weight=None if trial % 3 else 1e-3,
+            force_cap=None if trial % 2 else rng.uniform(-10.0, 300.0, 2))
+        taus.append((wbc_c.solve(dc, q, v, ref, feet), wbc_n.solve(dn, q, v, ref, feet)))
+    assert len(qp_c) == len(qp_n) == 24
+    for c, n in zip(qp_c, qp_n):
+        for key in QP_ARRAYS:
+            finite = np.abs(n[key]) < 1e19          # ±1e20: the free sides, equal exactly
+            np.testing.assert_array_equal(c[key][~finite], n[key][~finite])
+            scale = max(1.0, float(np.abs(n[key][finite]).max(initial=0.0)))
+            # measured ≤ 2e-15 relative (summation order of the products)
+            assert np.abs(c[key] - n[key])[finite].max(initial=0.0) <= 1e-12 * scale, key
+    for tau_c, tau_n in taus:
+        # the same QP solved by two warm-started solvers: equal within the QP's tolerance
+        np.testing.assert_allclose(tau_c, tau_n, atol=1e-6 * max(1.0, np.abs(tau_n).max()))

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -77,7 +78,7 @@ class GroundModel:
     def granular(self) -> bool:
         return self.kind == "granular"
 
-    @property
+    @cached_property
     def lateral_ratio(self) -> float:
         """Largest |F_l|/F_z the ground model admits (μ_l on sand, μ on rigid ground)."""
         G = self.polytope.G
@@ -92,6 +93,15 @@ class GroundModel:
         if depth <= 0.0:
             return 0.0
         return float(min(np.interp(depth, self._depths, self._caps), self.polytope.f_max))
+
+    def capacities(self, depths) -> np.ndarray:
+        """:meth:`capacity` of each of ``depths`` [m] in one interpolation (the same
+        numbers: ``np.interp`` evaluates each point alone) [N]."""
+        d = np.asarray(depths, dtype=float)
+        if not self.granular:
+            return np.full(d.shape, float(self.polytope.f_max))
+        cap = np.minimum(np.interp(d, self._depths, self._caps), self.polytope.f_max)
+        return np.where(d <= 0.0, 0.0, cap)
 
     def sinkage(self, force: float) -> float:
         """Depth Z(F) [m] at which the vertical capacity equals ``force`` [N] (0 on rigid)."""

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import pinocchio as pin
@@ -21,8 +22,6 @@ from ..config import CommandConfig, ControllerConfig
 from ..robot.model import SIDES, Biped
 from ..rotations import matrix_from_quat_xyzw, rot_z
 from ..terrain.base import TerrainModel
-from ..terrain.closed_form import FLOAT
-from ..terrain.contact import slice_geometry
 from .contact_model import GroundModel, ground_model
 from .gait import LEFT, CommandRamp, GaitSchedule, foothold, predict_com, predict_dcm
 from .mpc import CentroidalMPC, MPCData, MPCPlan
@@ -160,17 +159,17 @@ class WalkingController:
                               np.array([com[0], com[1], yaw]))
 
     # ------------------------------------------------------------------ helpers
-    @property
+    @cached_property
     def omega(self) -> float:
         """Natural frequency √(g/h) of the inverted pendulum over the stance foot [1/s]."""
         return math.sqrt(self.biped.gravity / self.config.mpc.com_height)
 
-    @property
+    @cached_property
     def foothold_config(self):
         """Foothold settings with the step width this ground allows."""
         return self.config.foothold.model_copy(update={"step_width": self.step_width})
 
-    @property
+    @cached_property
     def step_width(self) -> float:
         """Step width the controller uses [m]: the nominal one, narrowed where the ground
         cannot push sideways enough. In the linear inverted pendulum the lateral force is
@@ -189,23 +188,40 @@ class WalkingController:
         return h
 
     def foot_points(self, pdata: pin.Data) -> tuple[FootPoints, FootPoints]:
-        """Contact points (lowest points of the sole slices) of both feet, in W."""
+        """Contact points (lowest points of the sole slices) of both feet, in W.
+
+        The closed form of :func:`~granular_mpc.terrain.contact.slice_geometry` (the same
+        IEEE operations in the same order, vectorised over the slices): each slice's
+        lowest point is its centre ``p + y e_y`` plus the arc point
+        ``R sin ψ e_x − R cos ψ e_z``, with ψ the world-down direction in the slice plane
+        clipped to the sole's half-angle; ψ is the same for every slice of a foot."""
         out = []
-        R_arc = self.biped.config.foot.radius
-        psi = self.biped.config.foot.half_angle
-        surf = self.ground.surface_height
-        for side in SIDES:
-            oMf = pdata.oMf[self.biped.foot_frame[side]]
+        R_arc, half, ys, frames = self._sole
+        for fid in frames:
+            oMf = pdata.oMf[fid]
             p = oMf.translation
-            kin = list(p) + list(oMf.rotation.ravel("F")) + [0.0] * 6
-            pts = np.array([slice_geometry(FLOAT, kin, float(y), R_arc, psi, surf).p_c
-                            for y in self.biped.slice_offsets])
+            px, py, pz = p.tolist()
+            # rows of R: (e_x, e_y, e_z) components along W's x, y, z
+            (xx, yx, zx), (xy, yy, zy), (xz, yz, zz) = oMf.rotation.tolist()
+            psi = min(max(math.atan2(-xz, zz), -half), half)
+            s_, c_ = R_arc * math.sin(psi), -R_arc * math.cos(psi)
+            ax, ay, az = s_ * xx + c_ * zx, s_ * xy + c_ * zy, s_ * xz + c_ * zz
+            pts = np.array([((px + y * yx) + ax, (py + y * yy) + ay, (pz + y * yz) + az)
+                            for y in ys])
             out.append(FootPoints(pts, pts - p))
         return out[0], out[1]
 
+    @cached_property
+    def _sole(self) -> tuple:
+        """Sole arc radius [m], half-angle [rad], slice offsets [m] and both feet's frame
+        ids (left, right): the constants of :meth:`foot_points`."""
+        foot = self.biped.config.foot
+        return (foot.radius, foot.half_angle, self.biped.slice_offsets.tolist(),
+                tuple(self.biped.foot_frame[side] for side in SIDES))
+
     def _depth(self, fp: FootPoints) -> float:
         """Depth of a foot's lowest points below the surface [m]."""
-        return float(self.ground.surface_height - fp.points[:, 2].mean())
+        return float(self.ground.surface_height - fp.points[:, 2].sum() / len(fp.points))
 
     def _force_cap_now(self, feet) -> np.ndarray:
         """Normal force each foot may carry now [N]: the capacity at its depth plus the
@@ -213,7 +229,7 @@ class WalkingController:
         ≈ F_cap'(z)·δ, is what makes the foot sink, so the look-ahead δ sets both how fast
         the load can be taken and the largest overshoot (load only as fast as it sinks)."""
         step = self.config.mpc.max_sink_rate * 0.5 * self.config.mpc.dt
-        return np.array([self.ground.capacity(self._depth(fp) + step) for fp in feet])
+        return self.ground.capacities([self._depth(feet[0]) + step, self._depth(feet[1]) + step])
 
     def _stance_lever_points(self, fp: FootPoints, load: float) -> np.ndarray:
         """Where a stance foot's points will be under ``load``: deeper by the sinkage still
@@ -239,9 +255,6 @@ class WalkingController:
         pin.updateFramePlacements(b.model, pd)
         pin.centerOfMass(b.model, pd, q, v)
         com, vcom = pd.com[0].copy(), pd.vcom[0].copy()
-        R = matrix_from_quat_xyzw(q[3:7])
-        rpy = pin.rpy.matrixToRpy(R)
-        omega_W = R @ v[3:6]
         feet = self.foot_points(pd)
         stance = self.schedule.contacts(t)
         # lift-off bookkeeping
@@ -258,7 +271,7 @@ class WalkingController:
         if d.last_t is not None and ramp_done:      # no windup during start-up and ramp
             d.speed_integral += (v_cmd[0] - vcom[0]) * (t - d.last_t)
             lim = fh.max_speed_correction / max(fh.k_speed_integral, 1e-9)
-            d.speed_integral = float(np.clip(d.speed_integral, -lim, lim))
+            d.speed_integral = float(min(max(d.speed_integral, -lim), lim))
         d.last_t = t
         v_step = v_cmd.copy()
         v_step[0] += fh.k_speed_integral * d.speed_integral
@@ -294,11 +307,14 @@ class WalkingController:
         # ---------------- MPC
         if d.plan is None or t >= d.next_mpc - 1e-9:
             first = d.plan is None
+            R = matrix_from_quat_xyzw(q[3:7])
+            rpy = pin.rpy.matrixToRpy(R)
+            omega_W = R @ v[3:6]
             self._run_mpc(d, t, com, vcom, rpy, omega_W, feet, stance, v_cmd, y_line, yaw_ref)
             d.next_mpc = next_tick(d.next_mpc, t, 1.0 / self.config.mpc.rate_hz, first)
         plan = d.plan
         dt = self.config.mpc.dt
-        k = int(np.clip((t - plan.t) // dt, 0, self.mpc.N - 1))
+        k = int(min(max((t - plan.t) // dt, 0), self.mpc.N - 1))
         forces = self._force_reference(plan, t, stance)
         # CoM reference: the MPC prediction at t (linear in time inside the step)
         s = min(max((t - plan.t) / dt, 0.0), float(self.mpc.N))
@@ -350,11 +366,11 @@ class WalkingController:
         dt = self.config.mpc.dt
         n = plan.forces.shape[0]
         s = (t - plan.t) / dt
-        k = int(np.clip(math.floor(s), 0, n - 1))
-        want = np.asarray(stance, dtype=bool)
+        k = min(max(math.floor(s), 0), n - 1)
+        want = [bool(stance[0]), bool(stance[1])]
         near = k - 1 if s - k < 0.5 else k + 1
         for j in (k, near, 2 * k - near):
-            if 0 <= j < n and np.array_equal(plan.contacts[j], want):
+            if 0 <= j < n and plan.contacts[j].tolist() == want:
                 return plan.forces[j].copy()
         return nominal_forces(stance, self.biped.weight, plan.forces.shape[2])
 

@@ -31,6 +31,7 @@ from ..robot.model import SIDES, Biped
 from ..rotations import matrix_from_quat_xyzw, skew_rows
 from .contact_model import GroundModel
 from .solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
+from .wbc_qp import AssemblyCaller, AssemblyConstants, compile_assembly
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _ACCELERATION = pin.KinematicLevel.ACCELERATION
@@ -124,6 +125,7 @@ class WBCData:
     keep_residuals: bool = False     # store each task's residual (debugging)
     extra: dict = field(default_factory=dict)
     work: WBCWork | None = None
+    assembly: AssemblyCaller | None = None   # the compiled QP assembly (None: NumPy)
 
 
 @dataclass(frozen=True)
@@ -135,6 +137,10 @@ class WholeBodyController:
     swing_kd: float = 40.0
     n_points: int = 2
     contact_damping: float = 20.0   # [1/s] the medium stops a foot loaded within capacity
+    #: how the QP is built each tick: ``compiled`` (the assembly generated to C,
+    #: :mod:`.wbc_qp`; NumPy where no C compiler exists) or ``numpy`` (the reference).
+    #: The two give the same QP to rounding (≈ 2e-15 relative, ``tests/test_wbc.py``).
+    assembly: str = "compiled"
 
     @property
     def nv(self) -> int:
@@ -153,8 +159,38 @@ class WholeBodyController:
         return 6 + 2 * self.n_points * self.ground.polytope.G.shape[0]
 
     def new_data(self) -> WBCData:
+        work = self._new_work()
         return WBCData(ProxQPSolver(self.n, 6, self.n_in, box=True, eps_abs=1e-5, max_iter=100),
-                       self.biped.model.createData(), work=self._new_work())
+                       self.biped.model.createData(), work=work,
+                       assembly=self._bind_assembly(work))
+
+    def _bind_assembly(self, work: WBCWork) -> AssemblyCaller | None:
+        """The compiled assembly writing into ``work``'s QP arrays (None: NumPy assembly)."""
+        if self.assembly != "compiled":
+            return None
+        fns = _compiled(self.assembly_constants())
+        if fns is None:
+            return None
+        return AssemblyCaller(fns, self.nv, self.n_points,
+                              (work.H, work.g, work.A, work.b, work.C, work.l, work.u,
+                               work.lb, work.ub))
+
+    def assembly_constants(self) -> AssemblyConstants:
+        """The numbers the compiled assembly bakes in (gains, weights, limits, polytope)."""
+        c = self.config
+        poly = self.ground.polytope.scaled(1.0 / self.n_points)
+        return AssemblyConstants(
+            nv=self.nv, n_points=self.n_points,
+            w_orientation_sqrt=tuple(np.sqrt(np.asarray(c.w_orientation, dtype=float)).tolist()),
+            w_com=c.w_com, w_swing=c.w_swing, w_contact=c.w_contact,
+            w_regularisation=c.w_regularisation, kp_orientation=c.kp_orientation,
+            kd_orientation=c.kd_orientation, kp_com=c.kp_com, kd_com=c.kd_com,
+            swing_kp=float(self.swing_kp), swing_kd=float(self.swing_kd),
+            contact_damping=float(self.contact_damping), granular=bool(self.ground.granular),
+            tau_max=tuple(np.asarray(self.biped.torque_limits, dtype=float).tolist()),
+            G=tuple(map(tuple, np.asarray(self.ground.polytope.G, dtype=float).tolist())),
+            h_point=tuple(np.asarray(poly.h, dtype=float).tolist()),
+            f_max_point=float(poly.f_max))
 
     def _new_work(self) -> WBCWork:
         n, nv, n_in, nps = self.n, self.nv, self.n_in, self.n_points
@@ -175,12 +211,55 @@ class WholeBodyController:
     def solve(self, data: WBCData, q: np.ndarray, v: np.ndarray, ref: WBCReference,
               feet: tuple[FootPoints, FootPoints]) -> np.ndarray:
         """Joint torques (actuator order) [N·m] for state (q, v) and the references."""
+        b = self.biped
+        w = data.work
+        if w is None:
+            w = data.work = self._new_work()
+            data.assembly = self._bind_assembly(w)     # its outputs are the new arrays
+        nv = self.nv
+        if data.assembly is not None and not data.keep_residuals:
+            h_a = self._assemble_compiled(data, q, v, ref, feet)
+            Jt = et = names = None
+            # C's first rows are [M_a, −J_aᵀ]: τ = M_a q̈ + h_a − J_aᵀ f
+            M_a, JT_a = w.C[:6, :nv], -w.C[:6, nv:]
+        else:
+            h_a, Jt, et, names, M_a, JT_a = self._assemble_numpy(data, q, v, ref, feet)
+        H, g, C, l, u, lb, ub = w.H, w.g, w.C, w.l, w.u, w.lb, w.ub
+        tau_max = b.torque_limits
+        t0 = time.perf_counter()
+        sol = data.solver.solve(QPProblem(H, g, w.A, w.b, C, l, u, lb, ub))
+        data.last_ms = (time.perf_counter() - t0) * 1e3
+        data.solves += 1
+        data.last_status = sol.status
+        if sol.status.ok:
+            x = sol.x
+            if data.keep_residuals:
+                res = Jt @ x[:nv] + et
+                data.extra["task_residuals"] = {k: res[r0:r1] for k, r0, r1 in names}
+            tau = M_a @ x[:nv] + h_a - JT_a @ x[nv:]
+        else:
+            data.failures += 1
+            # fall back: the previous torques if any, else gravity/force feed-forward
+            if data.last_tau is not None:
+                tau = data.last_tau.copy()
+            else:
+                tau = h_a - JT_a @ ref.forces.reshape(-1)
+        tau = np.minimum(np.maximum(tau, -tau_max), tau_max)
+        data.last_tau = tau
+        return tau[b.idx_v - 6]          # v order → actuator order
+
+    def _assemble_numpy(self, data: WBCData, q: np.ndarray, v: np.ndarray, ref: WBCReference,
+                       feet: tuple[FootPoints, FootPoints]):
+        """Build the QP in ``data.work`` (made by :meth:`new_data`) with NumPy: the
+        reference assembly.
+
+        Returns ``(h_a, J, e, names, M_a, JT_a)``: the actuated rows of the nonlinear
+        effects, the stacked task Jacobian and errors, (task, first row, last row) per
+        task, and the actuated rows of M and of the contact Jacobians' transpose."""
         c = self.config
         b = self.biped
         model, pd = b.model, data.pin
         w = data.work
-        if w is None:
-            w = data.work = self._new_work()
         nv, nps = self.nv, self.n_points
         # one pass: M (CRBA), h (RNEA at q̈ = 0), joint Jacobians, CoM and its Jacobian,
         # body velocities and drift accelerations (q̈ = 0); then the CoM drift from those
@@ -307,27 +386,74 @@ class WholeBodyController:
             else:
                 lb3[i] = 0.0
                 ub3[i] = 0.0
-        t0 = time.perf_counter()
-        sol = data.solver.solve(QPProblem(H, g, w.A, w.b, C, l, u, lb, ub))
-        data.last_ms = (time.perf_counter() - t0) * 1e3
-        data.solves += 1
-        data.last_status = sol.status
-        if sol.status.ok:
-            x = sol.x
-            if data.keep_residuals:
-                res = Jt @ x[:nv] + et
-                data.extra["task_residuals"] = {n: res[r0:r1] for n, r0, r1 in names}
-            tau = M[6:] @ x[:nv] + h_a - JT[6:] @ x[nv:]
+        return h_a, Jt, et, names, M[6:], JT[6:]
+
+    def _assemble_compiled(self, data: WBCData, q: np.ndarray, v: np.ndarray,
+                           ref: WBCReference, feet: tuple[FootPoints, FootPoints]) -> np.ndarray:
+        """Build the QP in ``data.work`` with the compiled assembly (:mod:`.wbc_qp`);
+        returns the actuated rows of the nonlinear effects ``h_a`` [N·m]."""
+        b = self.biped
+        model, pd = b.model, data.pin
+        a = data.assembly
+        P = a.views
+        pin.computeAllTerms(model, pd, q, v)
+        pin.updateFramePlacements(model, pd)
+        pin.centerOfMass(model, pd, _ACCELERATION, False)
+        a.M[:] = pd.M
+        a.h[:] = pd.nle
+        a.Jcom[:] = pd.Jcom
+        P["com"][:] = pd.com[0]
+        P["vcom"][:] = pd.vcom[0]
+        P["acom"][:] = pd.acom[0]
+        fl, fr = b.foot_frame[SIDES[0]], b.foot_frame[SIDES[1]]
+        a.J6[:6] = pin.getFrameJacobian(model, pd, fl, _LWA)
+        a.J6[6:] = pin.getFrameJacobian(model, pd, fr, _LWA)
+        acc, vel = P["acc"], P["vel"]
+        acc[:6] = pin.getFrameClassicalAcceleration(model, pd, fl, _LWA).vector
+        acc[6:] = pin.getFrameClassicalAcceleration(model, pd, fr, _LWA).vector
+        vel[:6] = pin.getFrameVelocity(model, pd, fl, _LWA).vector
+        vel[6:] = pin.getFrameVelocity(model, pd, fr, _LWA).vector
+        rot, p_f = P["rot_f"], P["p_f"]
+        for i, fid in enumerate((fl, fr)):
+            oMf = pd.oMf[fid]
+            rot[9 * i:9 * i + 9] = oMf.rotation.ravel("F")
+            p_f[3 * i:3 * i + 3] = oMf.translation
+        k = 3 * self.n_points
+        P["offsets"][:k] = feet[0].offsets.ravel()
+        P["offsets"][k:] = feet[1].offsets.ravel()
+        R = matrix_from_quat_xyzw(q[3:7])
+        P["R"][:] = R.ravel("F")
+        P["omega_B"][:] = v[3:6]
+        P["err_W"][:] = pin.log3(ref.R_trunk @ R.T)
+        P["ref_omega"][:] = ref.omega
+        P["ref_com"][:] = ref.com
+        P["ref_com_vel"][:] = ref.com_vel
+        P["ref_com_acc"][:] = ref.com_acc
+        P["forces"][:] = ref.forces.reshape(-1)
+        P["swing_pos"][:] = ref.swing_pos.reshape(-1)
+        P["swing_vel"][:] = ref.swing_vel.reshape(-1)
+        P["swing_acc"][:] = ref.swing_acc.reshape(-1)
+        P["sink_accel"][:] = ref.sink_accel
+        P["w_force"][0] = self.config.w_force if ref.force_weight is None else ref.force_weight
+        share = P["share"]
+        if ref.force_cap is not None:
+            f_max = self.ground.polytope.f_max
+            share[0] = min(max(float(ref.force_cap[0]) / f_max, 0.0), 1.0)
+            share[1] = min(max(float(ref.force_cap[1]) / f_max, 0.0), 1.0)
         else:
-            data.failures += 1
-            # fall back: the previous torques if any, else gravity/force feed-forward
-            if data.last_tau is not None:
-                tau = data.last_tau.copy()
-            else:
-                tau = h_a - JT[6:] @ f_ref
-        tau = np.minimum(np.maximum(tau, -tau_max), tau_max)
-        data.last_tau = tau
-        return tau[b.idx_v - 6]          # v order → actuator order
+            share[:] = 1.0
+        a((bool(ref.stance[0]), bool(ref.stance[1])))
+        return a.h[6:]
+
+
+_COMPILED: dict = {}
+
+
+def _compiled(constants: AssemblyConstants):
+    """The compiled assembly functions for these constants, built once per process."""
+    if constants not in _COMPILED:
+        _COMPILED[constants] = compile_assembly(constants)
+    return _COMPILED[constants]
 
 
 __all__ = ["WholeBodyController", "WBCReference", "WBCData", "WBCWork", "FootPoints"]

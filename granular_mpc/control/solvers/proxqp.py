@@ -156,7 +156,8 @@ def _finite(p: QPProblem) -> bool:
         if arr is not None and not math.isfinite(float(arr.sum())):
             return False
     for arr in (p.l, p.u):
-        if arr is not None and np.isnan(arr).any():
+        # min propagates NaN (and only NaN: ±inf are ordered)
+        if arr is not None and arr.size and math.isnan(float(arr.min())):
             return False
     return True
 
