@@ -12,7 +12,9 @@ with channel groups removed (:func:`granular_mpc.validation.dataformat.drop.drop
 * ``all`` — every group;
 * ``no_intrusion`` — without ``intrusion``;
 * ``no_intrusion_force`` — without ``intrusion`` and ``foot_force`` (stance labels then
-  derived from the leg kinematics, as a lab without foot sensors has them);
+  derived from the leg kinematics, as a lab without foot sensors has them; the replay
+  windows' touchdowns and the trailing foot's initial load from the foot force estimated
+  from the joint torques, :mod:`granular_mpc.validation.contact_estimation`);
 * ``proprio`` — joint data + IMU only (also without ``trunk_position`` and
   ``trunk_linear_velocity``: the trunk state comes from leg odometry);
 * ``proprio_contact_labels`` — diagnostic: ``proprio`` with the plant's contact stance

@@ -88,11 +88,15 @@ def test_validate_reports_what_was_not_measured(proprio, tmp_path):
     cov = rep.report["coverage"]
     assert set(cov["missing"]) == set(PROPRIO_DROP)
     assert cov["trunk_state"].startswith("leg odometry")
+    # touchdowns and the trailing foot's load from an ESTIMATED force, said as such
+    assert cov["touchdowns"].startswith("foot force ESTIMATED from the joint torques")
+    assert "trailing foot's initial load" in cov["touchdowns"]
     assert rep.report["channels"] == [c for c in rep.report["channels"] if c.startswith("q_")]
     assert set(rep.report["overall_rmse"]["granular"]) == set(rep.report["channels"])
     assert all(np.isfinite(v) for v in rep.report["overall_rmse"]["granular"].values())
     md = (tmp_path / "val" / "report.md").read_text()
     assert "**not measured:** trunk_position, trunk_linear_velocity, foot_force, intrusion" in md
+    assert "* touchdowns: foot force ESTIMATED" in md
     on_disk = json.loads((tmp_path / "val" / "report.json").read_text())
     assert "grf_z" in on_disk["coverage"]["not_scored_channels"]
 

@@ -10,7 +10,7 @@ from typing import Mapping
 
 from .dataformat import Dataset
 from .dataformat.channels import ChannelGroup
-from .prepare import SCORED_GROUPS, channel_names
+from .scored_channels import SCORED_GROUPS, channel_names
 
 #: a candidate moving no measured channel × phase mean by this many σ at its nominal
 #: magnitude cannot be assessed when channel groups are missing
@@ -51,6 +51,8 @@ class Coverage:
         trunk_state: where the trunk position / velocity come from (``measured``,
             ``velocity from position``, ``leg odometry``).
         stance_source: ``measured``, ``force`` or ``kinematics``.
+        touchdowns: where the replay windows' touchdowns (and, without foot force, the
+            trailing foot's initial load) come from (:func:`touchdown_source`).
         calibration: how ζ was set (equation error, or kept and why).
         effects: per candidate (diagnosis only).
         threshold: :data:`MIN_ASSESSABLE_SIZE` [σ].
@@ -63,6 +65,7 @@ class Coverage:
     not_scored: tuple[str, ...]
     trunk_state: str
     stance_source: str
+    touchdowns: str = ""
     calibration: str = ""
     effects: tuple[EffectCoverage, ...] = ()
     threshold: float = MIN_ASSESSABLE_SIZE
@@ -89,7 +92,8 @@ class Coverage:
         return {"measured": list(self.measured), "missing": list(self.missing),
                 "declared": self.declared, "scored_channels": list(self.scored),
                 "not_scored_channels": list(self.not_scored), "trunk_state": self.trunk_state,
-                "stance_source": self.stance_source, "calibration": self.calibration,
+                "stance_source": self.stance_source, "touchdowns": self.touchdowns,
+                "calibration": self.calibration,
                 "threshold_sigma": self.threshold,
                 "not_assessable": list(self.not_assessable),
                 "effects": [asdict(e) for e in self.effects]}
@@ -99,7 +103,8 @@ class Coverage:
         """Inverse of :meth:`to_dict`."""
         return cls(tuple(d["measured"]), tuple(d["missing"]), bool(d["declared"]),
                    tuple(d["scored_channels"]), tuple(d["not_scored_channels"]),
-                   str(d["trunk_state"]), str(d["stance_source"]), str(d.get("calibration", "")),
+                   str(d["trunk_state"]), str(d["stance_source"]), str(d.get("touchdowns", "")),
+                   str(d.get("calibration", "")),
                    tuple(EffectCoverage(**{**e, "size": float("nan") if e["size"] is None
                                            else float(e["size"])})
                          for e in d.get("effects", ())),
@@ -115,6 +120,8 @@ class Coverage:
                  f"* not scored (not measured): {', '.join(self.not_scored) or 'none'}",
                  f"* trunk position / velocity: {self.trunk_state}; stance labels: "
                  f"{self.stance_source}"]
+        if self.touchdowns:
+            lines.append(f"* touchdowns: {self.touchdowns}")
         if self.calibration:
             lines.append(f"* calibration: {self.calibration}")
         if self.effects:
@@ -141,6 +148,18 @@ def trunk_state_source(ds: Dataset) -> str:
     return "leg odometry (stance foot + IMU)"
 
 
+def touchdown_source(ds: Dataset) -> str:
+    """Where the replay windows' touchdowns and, without measured foot force, the
+    trailing foot's initial load come from (see :mod:`..prepare`)."""
+    est = "foot force ESTIMATED from the joint torques (leg dynamics; not a measured channel)"
+    out = (f"stance labels ({ds.stance_source})" if ds.stance_source != "kinematics"
+           else f"{est}, else where the leg kinematics say the foot stops")
+    if not ds.has(ChannelGroup.FOOT_FORCE):
+        out += "; trailing foot's initial load: " + (
+            "the same estimate" if ds.stance_source == "kinematics" else est)
+    return out
+
+
 def channel_coverage(ds: Dataset) -> Coverage:
     """Measured / missing groups and scored / not-scored channels of ``ds``."""
     J = list(ds.joint_names)
@@ -149,10 +168,11 @@ def channel_coverage(ds: Dataset) -> Coverage:
     return Coverage(tuple(g.value for g in ds.channels),
                     tuple(g.value for g in ds.channels.missing), ds.channels.declared,
                     tuple(scored), tuple(c for c in every if c not in scored),
-                    trunk_state_source(ds), str(ds.stance_source))
+                    trunk_state_source(ds), str(ds.stance_source), touchdown_source(ds))
 
 
 
 
 __all__ = ["Coverage", "EffectCoverage", "channel_coverage", "trunk_state_source",
+           "touchdown_source",
            "MIN_ASSESSABLE_SIZE"]

@@ -271,6 +271,10 @@ class Landing:
 def landing(dz: np.ndarray, label_row: int, sample_rate_hz: float) -> Landing:
     """:class:`Landing` of a foot whose kinematic stance label starts at ``label_row``.
 
+    The fallback of :func:`~.contact_estimation.refined_landing`, which first looks for
+    the touchdown in the foot force estimated from the joint torques (its surface is not
+    biased by the sinking before the stop: ``docs/import.md``).
+
     Args:
         dz: landing-foot minus stance-foot contact-point height per sample [m].
         label_row: the first row labelled with the landing foot.

@@ -33,8 +33,10 @@ surface at its measured depth below its contact point (per-foot ``surface_height
 (:func:`channel_names`), an absent one is never replaced by zeros; without trunk position
 / velocity they are estimated by leg odometry (:mod:`.estimation`), without intrusion the
 surface is a plane through the leading foot's touchdown point and every phase starts at a
-touchdown (with kinematic stance labels, re-estimated by :func:`~.estimation.landing`),
-without foot force a buried foot starts unloaded (``docs/import.md``). A replay needs
+touchdown (with kinematic stance labels, re-estimated from the joint torques or the leg
+kinematics: :func:`~.contact_estimation.refined_landing`),
+without foot force a buried foot starts loaded with the force estimated from the joint
+torques (:mod:`.contact_estimation`; ``docs/import.md``). A replay needs
 :data:`REPLAY_REQUIRED`.
 """
 
@@ -51,53 +53,15 @@ import pinocchio as pin
 from ..columns import (AXES, BASE_ANGULAR_VELOCITY, BASE_LINEAR_VELOCITY, BASE_POSITION,
                        BASE_QUATERNION, GRF_COLUMNS, INTRUSION_COLUMNS, STANCE, TIME,
                        format_columns, joint_columns)
-from ..exceptions import DataFormatError, DataProblem
 from ..robot.model import SIDES, Biped
 from ..rotations import matrix_from_quat_wxyz
 from .dataformat import Dataset, stance_phases
 from .dataformat.channels import ChannelGroup, ChannelSet
-from .estimation import contact_offsets, estimate_trunk, landing
+from .contact_estimation import estimate_foot_forces, refined_landing
+from .estimation import contact_offsets, estimate_trunk
 from .foot_geometry import foot_pitch, patch_points
-
-#: the channel groups a replay cannot do without (initial state and inputs)
-REPLAY_REQUIRED = (ChannelGroup.JOINT_ANGLES, ChannelGroup.JOINT_TORQUES,
-                   ChannelGroup.TRUNK_ORIENTATION, ChannelGroup.TRUNK_ANGULAR_VELOCITY)
-
-#: scored channel groups (the replay predicts them), in channel order
-SCORED_GROUPS = (ChannelGroup.JOINT_ANGLES, ChannelGroup.FOOT_FORCE, ChannelGroup.INTRUSION)
-
-
-def channel_names(joint_names: Sequence[str], channels: ChannelSet | None = None) -> list[str]:
-    """Scored channels (format-v1 names): each joint angle, GRF x/y/z, intrusion x/y/z —
-    those of the measured groups of ``channels`` (default: all)."""
-    ch = ChannelSet.all() if channels is None else channels
-    out: list[str] = []
-    for g in SCORED_GROUPS:
-        if ch.has(g):
-            out += list(g.columns(joint_names))
-    return out
-
-
-def check_replayable(ds: Dataset) -> None:
-    """Raise if ``ds`` lacks a group a replay needs (:data:`REPLAY_REQUIRED`).
-
-    Raises:
-        DataFormatError: naming the missing groups and their columns.
-    """
-    missing = [g for g in REPLAY_REQUIRED if not ds.has(g)]
-    if missing:
-        raise DataFormatError([DataProblem(
-            str(ds.path / "meta.yaml"), f"a replay needs the channel group '{g.value}' "
-            f"({', '.join(g.columns(ds.joint_names))}), which this data set does not declare",
-            "channels") for g in missing])
-
-
-CHANNEL_UNITS = {"q": "rad", "grf": "N", "intrusion": "m"}
-
-
-def channel_unit(ch: str) -> str:
-    """Unit of a scored channel (``rad``, ``N`` or ``m``; ``""`` if unknown)."""
-    return CHANNEL_UNITS.get(ch.split("_")[0], "")
+from .scored_channels import (CHANNEL_UNITS, REPLAY_REQUIRED, SCORED_GROUPS,  # noqa: F401
+                              channel_names, channel_unit, check_replayable)
 
 
 @dataclass(frozen=True)
@@ -111,7 +75,8 @@ class FootInit:
         point: contact point (mean over patches) at the window start [m] (local frame).
         c0: touchdown point per patch [m] (local frame), shape (n_patches, 3).
         e: elastic displacement per patch [m] (−F/(n K)), shape (n_patches, 3).
-        force: measured force on the foot [N] (world axes).
+        force: measured force on the foot [N] (world axes); without foot force, the
+            force estimated from the joint torques.
         depth_max: deepest depth since touchdown [m].
         t_stance: time since touchdown [s].
     """
@@ -232,6 +197,7 @@ class TrialStates:
         # surface, None: from intrusion); kinematic labels: from the leg kinematics
         self.starts = [ph.row_start for ph in self.phases]
         self.surface_rows: list[int | None] = [None] * len(self.phases)
+        self.touchdown_counts = {"joint torques": 0, "leg kinematics": 0}
         if refine_touchdowns:
             self._landings(fs)
         has_p, has_v = ch.has(ChannelGroup.TRUNK_POSITION), ch.has(ChannelGroup.TRUNK_LINEAR_VELOCITY)
@@ -273,14 +239,18 @@ class TrialStates:
                 self.dintr_s[a:b] = _savgol(self.intr[a:b], cw, deriv=1, delta=dt)
 
     def _landings(self, fs: float) -> None:
-        """Each stance phase's first row and surface row from the leg kinematics
-        (:func:`~.estimation.landing`) instead of its label change."""
+        """Each phase's first row and surface row instead of its (late) label change:
+        from the joint torques, else the leg kinematics (:func:`~.contact_estimation.
+        refined_landing`); ``touchdown_counts`` says how many of each."""
         h = self.foot_heights()
+        self.estimated_force(SIDES[0], 0)                     # computes self._forces
         for n, ph in enumerate(self.phases):
             if ph.row_start <= 1:
                 continue
             other = SIDES[1 - SIDES.index(ph.side)]
-            ld = landing(h[ph.side] - h[other], ph.row_start, fs)
+            ld, source = refined_landing(self._forces.normal(ph.side), h[ph.side] - h[other],
+                                         ph.row_start, fs)
+            self.touchdown_counts[source] += 1
             self.starts[n] = min(max(ld.start, 1), ph.row_stop - 3)
             self.surface_rows[n] = min(max(ld.stop, self.starts[n]), ph.row_stop - 1)
 
@@ -296,6 +266,15 @@ class TrialStates:
             elif a > ph.row_start:
                 lab[ph.row_start:a] = SIDES[1 - SIDES.index(ph.side)]
         return lab
+
+    def estimated_force(self, side: str, k: int) -> np.ndarray:
+        """Without measured foot force: foot ``side``'s force at row ``k`` [N] (W),
+        ESTIMATED from the joint torques (:mod:`.contact_estimation`; mean of rows
+        k − 2 … k), computed once per trial."""
+        if not hasattr(self, "_forces"):
+            self._forces = estimate_foot_forces(self.biped, self.quat_raw, self.qa_raw,
+                                                self.tau, self.w_B, 1.0 / self.dt)
+        return self._forces.force[side][max(k - 2, 0):k + 1].mean(axis=0)
 
     def foot_heights(self) -> dict[str, np.ndarray]:
         """Each foot's contact-point height relative to the trunk origin in W per row [m]
@@ -505,7 +484,7 @@ def _window(index: int, st: TrialStates, df: pd.DataFrame, biped: Biped, data: p
         pin.framesForwardKinematics(biped.model, data, q0)
     elif touchdown:
         # no intrusion: the contact point is on the surface at the first stance sample,
-        # or (kinematic labels) where the landing foot stops, averaged over 3 samples
+        # or (kinematic labels) at the refined touchdown / stop, averaged over 3 samples
         r_s = a if surface_row is None else surface_row
         heights = []
         for k in range(max(r_s - 1, 0), min(r_s + 2, st.n)) if surface_row is not None else (a,):
@@ -530,7 +509,7 @@ def _window(index: int, st: TrialStates, df: pd.DataFrame, biped: Biped, data: p
     if a_label > 0 and st.labels[a_label - 1] == other:
         pa, pb = st.run_of(a_label - 1)
         kt = min(a, pb) - 1                       # its last sample before the window
-        force = st.grf_s[kt] if st.has_force else np.zeros(3)
+        force = st.grf_s[kt] if st.has_force else st.estimated_force(other, kt)
         if st.has_intrusion:
             trail = _foot_init(biped, data, other, depth=float(st.intr_s[kt, 2]),
                                intrusion=st.intr_s[kt], force=force, in_contact=True,
@@ -607,4 +586,4 @@ def windows_frame(windows: Sequence[StanceWindow], values: Sequence[dict] | None
 
 __all__ = ["StanceWindow", "FootInit", "TrialStates", "stance_windows", "windows_frame",
            "channel_names", "channel_unit", "check_replayable", "patch_points", "foot_pitch",
-           "AXES", "REPLAY_REQUIRED", "SCORED_GROUPS"]
+           "AXES", "REPLAY_REQUIRED", "SCORED_GROUPS", "CHANNEL_UNITS"]
