@@ -39,18 +39,19 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from types import SimpleNamespace
 
 os.environ.setdefault("GRANULAR_MPC_PROXSUITE", "generic")   # bit-reproducible runs
 
 import numpy as np  # noqa: E402
+from paper_ablation import failing_signals as ablation_signals  # noqa: E402
 
 from granular_mpc.analysis import plateau_by_stance, rolling_from_log  # noqa: E402
-from granular_mpc.columns import foot_column, joint_columns  # noqa: E402
+from granular_mpc.columns import joint_columns  # noqa: E402
 from granular_mpc.config.scenario import MotorConfig  # noqa: E402
 from granular_mpc.paper.measures import (late_share, opening_phase, read_summary,  # noqa: E402
                                          run_weight, stance_curves, steady_segments)
 from granular_mpc.robot.model import load_biped  # noqa: E402
-from granular_mpc.rotations import rpy_rows_from_quat_wxyz  # noqa: E402
 from granular_mpc.runlog import read_log  # noqa: E402
 from granular_mpc.runner import run_scenario  # noqa: E402
 from granular_mpc.scenario import load_scenario  # noqa: E402
@@ -124,7 +125,6 @@ KNOBS: tuple[Knob, ...] = (
 QUICK_KNOBS = ("base", "actuators")
 
 #: failing-signal thresholds (as bench/paper_ablation.py)
-PITCH_DEG, ROLL_DEG, COM_DROP_M, SLIP_M, SINK_M = 5.0, 5.0, 0.030, 0.030, 0.040
 
 
 @dataclass(frozen=True)
@@ -193,30 +193,11 @@ def electrical_cot(run_dir: Path, summary: dict, motor: MotorConfig | None = Non
 
 
 def failing_signals(run_dir: Path, biped) -> tuple[tuple[str, float], ...]:
-    """First time each failing signal trips after the weight shift (earliest first)."""
+    """First time each failing signal trips after the weight shift (earliest first): the
+    signals of ``bench/paper_ablation.py`` on the run's log."""
     log = read_log(run_dir)
     log = log[log["time"] >= 0.5].reset_index(drop=True)
-    t = log["time"].to_numpy()
-    out: dict[str, float] = {}
-
-    def first(name, mask):
-        idx = np.flatnonzero(mask)
-        if len(idx):
-            out[name] = float(t[idx[0]])
-
-    rpy = rpy_rows_from_quat_wxyz(log[["base_qw", "base_qx", "base_qy", "base_qz"]].to_numpy())
-    first(f"pitch>{PITCH_DEG:g}", np.abs(np.degrees(rpy[:, 1])) > PITCH_DEG)
-    first(f"roll>{ROLL_DEG:g}", np.abs(np.degrees(rpy[:, 0])) > ROLL_DEG)
-    first("com_drop>30mm", log["com_z"].to_numpy() < log["com_z"].iloc[0] - COM_DROP_M)
-    tau = log[joint_columns(biped.joint_names, "tau")].to_numpy()
-    sat = np.abs(tau) >= 0.99 * np.asarray(biped.torque_limits)[None, :]
-    for j, n in enumerate(biped.joint_names):
-        first(f"tau_sat:{n}", sat[:, j])
-    first("slip>30mm", np.hypot(log["intrusion_x"].to_numpy(), log["intrusion_y"].to_numpy())
-          > SLIP_M)
-    first("sink>40mm", np.maximum(log[foot_column("left", "depth")].to_numpy(),
-                                  log[foot_column("right", "depth")].to_numpy()) > SINK_M)
-    return tuple(sorted(out.items(), key=lambda kv: kv[1]))
+    return ablation_signals(SimpleNamespace(biped=biped), log)
 
 
 def run_knob(knob: Knob, terrain: str, out: Path, seconds: float, quick: bool,

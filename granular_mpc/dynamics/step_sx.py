@@ -126,6 +126,40 @@ def symbolic_contact(terrain) -> ca.Function:
     return terrain.contact.symbolic
 
 
+def _checked_trace(label: str, name: str, build, float_fn, param_sets, na: int) -> ca.Function:
+    """Trace a joint-effect hook with SX and check it against its float form.
+
+    Args:
+        label: the effect as named in errors; name: the CasADi function's name.
+        build: ``(q_a, dq_a, p) -> τ_a`` on SX symbols (``p``: the parameter symbols).
+        float_fn: ``(q_a, dq_a, p) -> τ_a`` on floats (``p``: one of ``param_sets``).
+        param_sets: ``[(values (n_p,), p for float_fn), …]`` checked at random q_a, dq_a.
+        na: number of actuated joints.
+
+    Raises:
+        ConfigError: the hook cannot be traced with CasADi or gives other values.
+    """
+    n_p = len(param_sets[0][0])
+    qa, va, ps = ca.SX.sym("q_a", na), ca.SX.sym("dq_a", na), ca.SX.sym("p", n_p)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FutureWarning)
+            out = ca.SX(build(qa, va, ps))
+        traced = ca.Function(name, [qa, va, ps], [ca.reshape(out, na, 1)])
+        rng = np.random.default_rng(0)
+        qn, vn = rng.normal(size=na), rng.normal(size=na)
+        ok = all(np.allclose(np.array(traced(qn, vn, pv)).ravel(),
+                             np.asarray(float_fn(qn, vn, p), float), rtol=1e-12, atol=1e-12)
+                 for pv, p in param_sets)
+    except Exception as exc:  # noqa: BLE001 - any failure means "not traceable"
+        raise ConfigError(f"joint effect {label} cannot be compiled ({exc}); use the "
+                          "reference Plant", key="joint_effects") from exc
+    if not ok:
+        raise ConfigError(f"joint effect {label} traced with CasADi gives other values "
+                          "than on floats; use the reference Plant", key="joint_effects")
+    return traced
+
+
 def trace_joint_effect_params(info, na: int) -> ca.Function:
     """Trace a registered joint effect ``info.fn(q_a, dq_a, p)`` with its parameters
     symbolic: ``joint_effect(q_a, dq_a, p) -> τ_a`` (``p`` in ``info.params`` order),
@@ -135,48 +169,19 @@ def trace_joint_effect_params(info, na: int) -> ca.Function:
         ConfigError: the effect cannot be traced with CasADi or gives other values.
     """
     names = list(info.params)
-    qa, va, ps = ca.SX.sym("q_a", na), ca.SX.sym("dq_a", na), ca.SX.sym("p", len(names))
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", FutureWarning)
-            out = ca.SX(info.fn(qa, va, {k: ps[i] for i, k in enumerate(names)}))
-        traced = ca.Function(f"joint_{info.name}", [qa, va, ps], [ca.reshape(out, na, 1)])
-        rng = np.random.default_rng(0)
-        qn, vn = rng.normal(size=na), rng.normal(size=na)
-        ok = True
-        for p in (info.resolve_params({}), info.neutral_params()):
-            pv = np.array([p[k] for k in names], dtype=float)
-            ok = ok and np.allclose(np.array(traced(qn, vn, pv)).ravel(),
-                                    np.asarray(info.fn(qn, vn, dict(p)), float),
-                                    rtol=1e-12, atol=1e-12)
-    except Exception as exc:  # noqa: BLE001 - any failure means "not traceable"
-        raise ConfigError(f"joint effect {info.name!r} cannot be compiled ({exc}); use the "
-                          "reference Plant", key="joint_effects") from exc
-    if not ok:
-        raise ConfigError(f"joint effect {info.name!r} traced with CasADi gives other values "
-                          "than on floats; use the reference Plant", key="joint_effects")
-    return traced
+    sets = [(np.array([p[k] for k in names], dtype=float), dict(p))
+            for p in (info.resolve_params({}), info.neutral_params())]
+    return _checked_trace(repr(info.name), f"joint_{info.name}",
+                          lambda q, v, ps: info.fn(q, v, {k: ps[i] for i, k in enumerate(names)}),
+                          info.fn, sets, na)
 
 
 def _trace_joint_effect(fn, na: int) -> ca.Function:
     """Trace a joint-effect hook ``(q_a, dq_a) -> τ_a`` with SX and check it numerically."""
+    traced = _checked_trace(repr(fn), "joint_effect_p", lambda q, v, ps: fn(q, v),
+                            lambda q, v, p: fn(q, v), [(np.zeros(0), None)], na)
     qa, va = ca.SX.sym("q_a", na), ca.SX.sym("dq_a", na)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", FutureWarning)
-            out = ca.SX(fn(qa, va))
-        traced = ca.Function("joint_effect", [qa, va], [ca.reshape(out, na, 1)])
-        rng = np.random.default_rng(0)
-        qn, vn = rng.normal(size=na), rng.normal(size=na)
-        ok = np.allclose(np.array(traced(qn, vn)).ravel(), np.asarray(fn(qn, vn), float),
-                         rtol=1e-12, atol=1e-12)
-    except Exception as exc:  # noqa: BLE001 - any failure means "not traceable"
-        raise ConfigError(f"joint effect {fn!r} cannot be compiled ({exc}); use the "
-                          "reference Plant", key="joint_effects") from exc
-    if not ok:
-        raise ConfigError(f"joint effect {fn!r} traced with CasADi gives other values than "
-                          "on floats; use the reference Plant", key="joint_effects")
-    return traced
+    return ca.Function("joint_effect", [qa, va], [traced(qa, va, ca.SX(0, 1))])
 
 
 class StepBuilder:
