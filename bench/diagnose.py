@@ -24,6 +24,16 @@ import time
 from pathlib import Path
 
 
+def benchmark_data(folder: Path) -> Path:
+    """The benchmark's data set (5 speeds × 9 steps, hidden cohesion, noise level 1,
+    seed 11), synthesised into ``folder``."""
+    from granular_mpc.validation.synth import synthesize
+
+    synthesize("sand_walk", folder, speeds=[0.1, 0.2, 0.3, 0.4, 0.5], steps=9, seed=11,
+               effects=["cohesion:suction=3000"], noise=1.0, format="parquet")
+    return folder
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", type=Path, help="an existing data set (default: synthesise one)")
@@ -33,14 +43,10 @@ def main() -> None:
 
     from granular_mpc.validation.diagnose import diagnose
     from granular_mpc.validation.replay import validate
-    from granular_mpc.validation.synth import synthesize
-
     with tempfile.TemporaryDirectory() as tmp:
         data = args.data
         if data is None:
-            data = Path(tmp) / "data"
-            synthesize("sand_walk", data, speeds=[0.1, 0.2, 0.3, 0.4, 0.5], steps=9, seed=11,
-                       effects=["cohesion:suction=3000"], noise=1.0, format="parquet")
+            data = benchmark_data(Path(tmp) / "data")
         t0 = time.perf_counter()
         rep = validate(data, Path(tmp) / "validate", workers=args.workers)
         t_val = time.perf_counter() - t0

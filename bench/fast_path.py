@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 from _report import emit
+from diagnose import benchmark_data
 
 PLANTS = ("reference", "compiled")
 
@@ -57,14 +58,10 @@ def main(argv=None) -> dict:
     ap.add_argument("--repeat", type=int, default=1)
     args = ap.parse_args(argv)
 
-    from granular_mpc.validation.synth import synthesize
-
     with tempfile.TemporaryDirectory() as tmp:
         data = args.data
         if data is None:
-            data = Path(tmp) / "data"
-            synthesize("sand_walk", data, speeds=[0.1, 0.2, 0.3, 0.4, 0.5], steps=9, seed=11,
-                       effects=["cohesion:suction=3000"], noise=1.0, format="parquet")
+            data = benchmark_data(Path(tmp) / "data")
         figures: dict = {"load_before": os.getloadavg()[0]}
         runs: dict = {p: [] for p in PLANTS}
         for r in range(max(1, args.repeat)):
