@@ -256,7 +256,9 @@ def test_an_encoder_offset_at_its_true_value_restores_the_replay(clean_windows):
 
     e_ref, e_off, e_fix = err(ref, ws[k]), err(off, wb[k]), err(fix, wb[k])
     assert e_fix < e_off
-    assert e_fix <= 1.2 * e_ref + 2e-3          # as good as the unbiased data's replay
+    # as good as the unbiased data's replay; held-out (all 12 left windows of the null case
+    # at plant seed 121): e_fix − e_ref ≤ 0.47 mrad, ≥ 1.75 mrad inside this bound
+    assert e_fix <= 1.2 * e_ref + 2e-3
     assert np.sqrt(np.mean((fix["grf_z"] - ref["grf_z"]) ** 2)) < 0.03 * np.abs(ref["grf_z"]).max()
 
 
