@@ -121,8 +121,8 @@ def write_dataset(path: str | Path, meta: DatasetMeta | Mapping[str, Any],
     targets = [folder / META_FILE] + [folder / e.file for e in meta_obj.trials.values()]
     existing = [p.name for p in targets if p.exists()]
     if existing and not overwrite:
-        raise OutputError(f"{folder} already holds {', '.join(existing)} (pass overwrite=True "
-                          "to replace)")
+        raise OutputError(f"{folder} already holds {', '.join(existing)} (--overwrite, or "
+                          "overwrite=True from Python, replaces them)")
     try:
         folder.mkdir(parents=True, exist_ok=True)
         for name, entry in meta_obj.trials.items():
