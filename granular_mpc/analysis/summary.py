@@ -61,7 +61,8 @@ def averaging_window(sim: Simulation, t_first: float, t_last: float, ramp_durati
     Walk: from ``command.start_delay`` + speed-ramp duration + ``metrics.settle`` to the
     end of the log (the fall, if the run stopped there). If that leaves less than one gait
     period, the second half of the log is used instead (``window_note`` says so). Drop:
-    the whole log.
+    the whole log. Playback: from the start of the recorded run's window (it walked the
+    same references) to the end of the log.
 
     Args:
         sim: the simulation (its scenario and whether it has a walking controller).
@@ -70,6 +71,12 @@ def averaging_window(sim: Simulation, t_first: float, t_last: float, ramp_durati
         ramp_duration: duration of the speed ramp [s].
     """
     sc = sim.scenario
+    playback = getattr(sim, "playback", None)
+    if playback is not None:
+        w = playback.reference.window_s
+        if w is None or t_last - w[0] < sc.controller.gait.period:
+            return t_first, t_last, "whole run (playback; the recorded run gives no usable window)"
+        return w[0], t_last, "the recorded run's window (playback)"
     if sim.controller is None:
         return t_first, t_last, "whole run (drop test)"
     a = sc.command.start_delay + ramp_duration + sc.metrics.settle

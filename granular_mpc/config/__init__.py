@@ -27,7 +27,7 @@ from .errors import format_location, validate
 from .loader import (apply_override, dump_yaml, load_robot, load_terrain, load_yaml,
                      parse_override, robot_dict, terrain_dict, terrain_from_dict, to_plain)
 from .robot import FootConfig, FootGeometry, RobotConfig
-from .scenario import (ActuatorsConfig, DropConfig, FallConfig, GuideRigConfig,
+from .scenario import (ActuatorsConfig, DropConfig, FallConfig, GuideRigConfig, PlaybackConfig,
                        JointFrictionConfig, MetricsConfig, MotorConfig, OutputConfig,
                        PushConfig, ScenarioConfig, SimConfig, SweepConfig, Vector3)
 from .schema_walk import model_fields_at
@@ -43,7 +43,7 @@ __all__ = [
     "FootGeometry", "FootConfig", "RobotConfig",
     "GaitConfig", "SwingConfig", "FootholdConfig", "MPCConfig", "WBCConfig", "ControllerConfig",
     "CommandConfig",
-    "SimConfig", "ActuatorsConfig", "JointFrictionConfig", "MotorConfig", "DropConfig", "Vector3", "FallConfig", "PushConfig", "GuideRigConfig",
+    "SimConfig", "ActuatorsConfig", "JointFrictionConfig", "MotorConfig", "DropConfig", "PlaybackConfig", "Vector3", "FallConfig", "PushConfig", "GuideRigConfig",
     "MetricsConfig", "OutputConfig", "SweepConfig", "ScenarioConfig",
     "load_yaml", "to_plain", "dump_yaml", "robot_dict", "terrain_dict", "load_robot",
     "load_terrain", "terrain_from_dict", "parse_override", "apply_override",

@@ -100,6 +100,17 @@ class DropConfig(StrictModel):
     kd: NonNegFloat = Field(3.0, description="Joint PD damping [N·m·s/rad].")
 
 
+class PlaybackConfig(StrictModel):
+    """Joint playback (``mode: playback``, the paper protocol's fallback): the joint
+    references of a recorded run tracked by joint PD, without any balance feedback, as a
+    position-controlled servo would (docs/paper.md, "The fallback protocol")."""
+
+    reference: Optional[str] = Field(None, description="Run folder whose log's joint angles, velocities and torques are played back (required in mode 'playback').")
+    kp: NonNegFloat = Field(150.0, description="Joint PD stiffness [N·m/rad] (the drop test's servo gains; 0 with feedforward: the recorded torques alone).")
+    kd: NonNegFloat = Field(3.0, description="Joint PD damping [N·m·s/rad].")
+    feedforward: bool = Field(False, description="Add the recorded joint torques to the PD torques (off: pure PD, as a position servo).")
+
+
 Vector3 = Annotated[list[FiniteFloat], Field(min_length=3, max_length=3)]
 """Three finite numbers (a vector [x, y, z])."""
 
@@ -207,7 +218,7 @@ class ScenarioConfig(StrictModel):
 
     name: str = Field("scenario", description="Scenario name (default output folder runs/<name>-<time>).")
     description: str = ""
-    mode: Literal["walk", "drop"] = Field("walk", description="'walk': closed-loop walking; 'drop': drop test on a guide rig.")
+    mode: Literal["walk", "drop", "playback"] = Field("walk", description="'walk': closed-loop walking; 'drop': drop test on a guide rig; 'playback': a recorded run's joint references tracked by joint PD (playback:).")
     robot: RobotConfig
     terrain: TerrainConfig
     controller_terrain: Optional[Annotated[Union[GranularTerrainConfig, RigidTerrainConfig],
@@ -217,6 +228,7 @@ class ScenarioConfig(StrictModel):
     command: CommandConfig = Field(default_factory=CommandConfig)
     initial_clearance: Optional[float] = Field(None, ge=-0.05, le=0.5, description="Lowest sole point above the free surface at t = 0 [m] (walk); default 0 on rigid ground, −0.005 on sand.")
     drop: DropConfig = Field(default_factory=DropConfig)
+    playback: PlaybackConfig = Field(default_factory=PlaybackConfig)
     rig: GuideRigConfig = Field(default_factory=GuideRigConfig)
     fall: FallConfig = Field(default_factory=FallConfig)
     pushes: list[PushConfig] = Field(default_factory=list)
@@ -229,6 +241,9 @@ class ScenarioConfig(StrictModel):
         if self.controller.terrain == "plant" and self.controller_terrain is not None:
             raise ValueError("controller_terrain is given but controller.terrain is 'plant'; "
                              "set controller.terrain to a terrain name, or drop controller_terrain")
+        if self.mode == "playback" and not self.playback.reference:
+            raise ValueError("mode 'playback' needs playback.reference: the run folder whose "
+                             "joint references are played back")
         if self.mode == "drop" and self.pushes:
             raise ValueError("pushes are not supported in mode 'drop' (the guide rig holds the trunk)")
         if self.output.log_rate_hz is not None and self.output.log_rate_hz * self.sim.dt > 1.0 + 1e-9:
@@ -252,5 +267,5 @@ class ScenarioConfig(StrictModel):
 
 
 __all__ = ["PerJointNonNeg", "PerJointPositive", "JointFrictionConfig", "MotorConfig",
-           "ActuatorsConfig", "SimConfig", "DropConfig", "Vector3", "FallConfig", "PushConfig", "GuideRigConfig",
+           "ActuatorsConfig", "SimConfig", "DropConfig", "PlaybackConfig", "Vector3", "FallConfig", "PushConfig", "GuideRigConfig",
            "MetricsConfig", "OutputConfig", "SweepConfig", "ScenarioConfig"]

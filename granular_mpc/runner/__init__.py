@@ -19,6 +19,7 @@ Three layers, each usable on its own:
 Sweeps (``sweep.py``): :func:`run_sweep` runs many scenarios on a process pool
 (:mod:`granular_mpc.parallel`) or Ray (``sweep_ray.py``) and writes ``sweep.csv`` and the
 CoT plot (``sweep_report.py``). Drop tests hang the trunk on a guide rig (``rig.py``).
+``mode: playback`` replays a recorded run's joint references by joint PD (``playback.py``).
 
 Every name below stays importable from ``granular_mpc.runner``.
 """
@@ -27,6 +28,7 @@ from ..analysis.summary import SUMMARY_KEYS, averaging_window, stance_metrics, s
 from ..columns import HTML_FILE, LOG_DIR, PLOTS_DIR, RESOLVED_FILE, SUMMARY_FILE
 from .build import PushWindow, Simulation, build_simulation
 from .loop import check_fall, closed_loop, trunk_roll_pitch
+from .playback import JointPlayback, JointReference
 from .run import RunResult, run_scenario
 from .rundir import default_out_dir, prepare_out_dir, write_resolved_config
 from .state import FallEvent, LoopState
@@ -37,5 +39,5 @@ __all__ = ["Simulation", "LoopState", "FallEvent", "PushWindow", "RunResult", "S
            "build_simulation", "closed_loop", "check_fall", "trunk_roll_pitch", "summarize",
            "stance_metrics", "averaging_window", "run_scenario", "default_out_dir",
            "prepare_out_dir", "write_resolved_config", "SweepResult", "run_sweep",
-           "sweep_task", "sweep_table", "sweep_plot",
+           "sweep_task", "sweep_table", "sweep_plot", "JointPlayback", "JointReference",
            "LOG_DIR", "PLOTS_DIR", "SUMMARY_FILE", "RESOLVED_FILE", "HTML_FILE"]

@@ -2,7 +2,8 @@
 controller, push windows, step counts).
 
 Timing. The plant steps at ``sim.dt``; the controller (``mode: walk``: the walking
-controller; ``mode: drop``: joint PD) is evaluated every ``1 / controller.wbc.rate_hz``
+controller; ``mode: drop``: joint PD holding the pose; ``mode: playback``: joint PD
+tracking a recorded run, :mod:`~granular_mpc.runner.playback`) is evaluated every ``1 / controller.wbc.rate_hz``
 and a log row is written every ``1 / output.log_rate_hz``; both periods are whole numbers
 of plant steps (:func:`step_count`).
 
@@ -35,6 +36,7 @@ from ..exceptions import ConfigError
 from ..robot.kinematics import balanced_stance
 from ..robot.model import SIDES, Biped
 from ..terrain import build_terrain
+from .playback import JointPlayback, JointReference
 from .rig import GuideRig
 from .state import LoopState
 
@@ -71,7 +73,7 @@ class Simulation:
         plant: the plant (its ``terrain`` is the plant's terrain model).
         controller_terrain: the ground model the controller believes in (the plant's own
             object when ``controller.terrain`` is ``plant``).
-        controller: the walking controller (``None`` in ``mode: drop``).
+        controller: the walking controller (``None`` in ``mode: drop`` and ``playback``).
         q0: initial configuration.
         pushes: push windows, in time order.
         control_every: plant steps per controller tick.
@@ -79,6 +81,7 @@ class Simulation:
         n_steps: plant steps of the whole run.
         plant_choice: the plant asked for (``sim.plant``) and the one stepping, with the
             reason of a fallback.
+        playback: the joint PD law of ``mode: playback`` (``None`` otherwise).
     """
 
     scenario: ScenarioConfig
@@ -92,6 +95,7 @@ class Simulation:
     log_every: int
     n_steps: int
     plant_choice: PlantChoice = PlantChoice("reference", "reference")
+    playback: JointPlayback | None = None
 
     @property
     def plant_terrain(self):
@@ -119,7 +123,7 @@ class Simulation:
         cdata = None
         if self.controller is not None:
             cdata = self.controller.new_data(self.q0, dt_wbc=self.control_every * self.dt)
-        else:
+        elif self.scenario.mode == "drop":
             pdata.base_wrench = GuideRig(self.scenario.rig, self.q0)
         rng = np.random.default_rng(np.random.SeedSequence(self.scenario.sim.seed))
         return LoopState(plant=pdata, controller=cdata, rng=rng)
@@ -184,14 +188,21 @@ def build_simulation(scenario: ScenarioConfig, *, biped: Biped | None = None,
     q0[2] += plant_terrain.surface_height
     controller = None
     pushes: tuple[PushWindow, ...] = ()
+    playback = None
     if scenario.mode == "walk":
         controller = WalkingController.build(scenario.controller, scenario.command, biped,
                                              ctrl_terrain)
         pushes = push_windows(scenario, controller.schedule, dt)
+    elif scenario.mode == "playback":
+        pb = scenario.playback
+        playback = JointPlayback(JointReference.from_run(pb.reference, biped.joint_names),
+                                 kp=pb.kp, kd=pb.kd, feedforward=pb.feedforward,
+                                 tau_max=biped.torque_limits)
     return Simulation(scenario=scenario, biped=biped, plant=plant,
                       controller_terrain=ctrl_terrain, controller=controller, q0=q0,
                       pushes=pushes, control_every=control_every, log_every=log_every,
-                      n_steps=int(round(scenario.sim.duration / dt)), plant_choice=choice)
+                      n_steps=int(round(scenario.sim.duration / dt)), plant_choice=choice,
+                      playback=playback)
 
 
 def stepping_plant(plant: Plant, scenario: ScenarioConfig):
