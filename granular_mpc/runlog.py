@@ -153,56 +153,81 @@ class PlantRecorder:
     def __init__(self, biped: Biped) -> None:
         self.biped = biped
         self._pdata = biped.create_data()
-        self._qcols = joint_columns(biped.joint_names, "q")
-        self._dqcols = joint_columns(biped.joint_names, "dq")
-        self._taucols = joint_columns(biped.joint_names, "tau")
+        nj = len(biped.joint_names)
+        qcols = joint_columns(biped.joint_names, "q")
+        dqcols = joint_columns(biped.joint_names, "dq")
+        taucols = joint_columns(biped.joint_names, "tau")
+        # the joint columns interleaved per joint (q, dq, τ), the row's column order
+        self._joint_cols = tuple(c for i in range(nj) for c in (qcols[i], dqcols[i], taucols[i]))
+        self._joint_buf = np.empty((nj, 3))
         # per foot: (grf, intrusion, contact point) column per axis, then the scalars
-        self._foot = [([(foot_column(side, f"grf_{ax}"), foot_column(side, f"intrusion_{ax}"),
-                         foot_column(side, f"p{ax}")) for ax in AXES],
+        self._foot = [(tuple(c for ax in AXES for c in (foot_column(side, f"grf_{ax}"),
+                                                         foot_column(side, f"intrusion_{ax}"),
+                                                         foot_column(side, f"p{ax}"))),
                        foot_column(side, "contact"), foot_column(side, "depth"),
                        foot_column(side, "pitch"), foot_column(side, "cap_z"))
                       for side in SIDES]
+        # the stance foot's copies: (stance column, the foot's column) per side
+        self._stance_cols = {side: tuple((c, foot_column(side, c)) for pair in
+                                         zip(GRF_COLUMNS, INTRUSION_COLUMNS) for c in pair)
+                             for side in SIDES}
+        self._none_cols = tuple((c, 0.0) for pair in zip(GRF_COLUMNS, INTRUSION_COLUMNS)
+                                for c in pair)
+        self._com_cols = COM_POSITION + COM_VELOCITY
+        self._free_flyer = biped.model.joints[1].shortname() == "JointModelFreeFlyer"
 
     def row(self, d, *, stance: str | None = None, extra: Mapping[str, Any] | None = None) -> dict:
         """Row for plant data ``d``; ``stance`` defaults to the foot in contact (the one
-        carrying more weight if both, ``none`` if neither)."""
+        carrying more weight if both, ``none`` if neither).
+
+        Columns in this order: time, per joint ``q, dq, tau``, the base, per foot (per axis
+        grf, intrusion, contact point; contact, depth, pitch, cap_z), stance, the stance
+        foot's grf and intrusion, the CoM, then ``extra``. Values are Python floats (ints
+        for ``contact``), filled from whole arrays at once (one ``tolist`` per block)."""
         b = self.biped
         q, v = d.q, d.v
         row: dict[str, Any] = {TIME: d.t}
-        qa, dqa, ta = q[b.idx_q], v[b.idx_v], d.tau[b.idx_v]
-        for i in range(len(b.joint_names)):
-            row[self._qcols[i]] = float(qa[i])
-            row[self._dqcols[i]] = float(dqa[i])
-            row[self._taucols[i]] = float(ta[i])
-        R = matrix_from_quat_xyzw(q[3:7])
+        jb = self._joint_buf
+        jb[:, 0] = q[b.idx_q]
+        jb[:, 1] = v[b.idx_v]
+        jb[:, 2] = d.tau[b.idx_v]
+        row.update(zip(self._joint_cols, jb.ravel().tolist()))
+        # the CoM pass runs the forward kinematics: the free flyer's placement is the
+        # trunk's rotation, the same numbers as matrix_from_quat_xyzw(q[3:7]) bit for bit
+        pin.centerOfMass(b.model, self._pdata, q, v)
+        R = (np.ascontiguousarray(self._pdata.oMi[1].rotation) if self._free_flyer
+             else matrix_from_quat_xyzw(q[3:7]))
         vw = R @ v[0:3]
         # position, quaternion (w, x, y, z), linear velocity (W), angular velocity (B)
-        base = (q[0], q[1], q[2], q[6], q[3], q[4], q[5], vw[0], vw[1], vw[2], v[3], v[4], v[5])
+        ql, vl = q[0:7].tolist(), v[3:6].tolist()
+        base = (ql[0], ql[1], ql[2], ql[6], ql[3], ql[4], ql[5], *vw.tolist(), *vl)
         row.update(zip(BASE_COLUMNS, base))
         fz = []
         for i, (axis_cols, c_contact, c_depth, c_pitch, c_cap) in enumerate(self._foot):
-            f = d.foot_force(i)
-            diag = d.foot_diag(i)
-            pt = d.foot_point(i)
+            f = d.foot_force(i).tolist()
+            diag = d.foot_diag(i).tolist()
+            pt = d.foot_point(i).tolist()
             contact = d.foot_in_contact(i)
-            for k, (c_grf, c_intr, c_p) in enumerate(axis_cols):
-                row[c_grf] = float(f[k])
-                row[c_intr] = float(diag[2 + k]) if contact else 0.0
-                row[c_p] = float(pt[k])
+            if contact:
+                vals = (f[0], diag[2], pt[0], f[1], diag[3], pt[1], f[2], diag[4], pt[2])
+            else:
+                vals = (f[0], 0.0, pt[0], f[1], 0.0, pt[1], f[2], 0.0, pt[2])
+            row.update(zip(axis_cols, vals))
             row[c_contact] = int(contact)
-            row[c_depth] = float(diag[0]) if contact else 0.0
-            row[c_pitch] = float(diag[5])
-            row[c_cap] = float(diag[1])
-            fz.append(float(f[2]) if contact else -np.inf)
+            row[c_depth] = diag[0] if contact else 0.0
+            row[c_pitch] = diag[5]
+            row[c_cap] = diag[1]
+            fz.append(f[2] if contact else -np.inf)
         if stance is None:
             stance = "none" if max(fz) == -np.inf else SIDES[int(np.argmax(fz))]
         row[STANCE] = stance
-        for c_grf, c_intr in zip(GRF_COLUMNS, INTRUSION_COLUMNS):
-            row[c_grf] = row[foot_column(stance, c_grf)] if stance != "none" else 0.0
-            row[c_intr] = row[foot_column(stance, c_intr)] if stance != "none" else 0.0
-        pin.centerOfMass(b.model, self._pdata, q, v)
+        if stance != "none":
+            for c, src in self._stance_cols[stance]:
+                row[c] = row[src]
+        else:
+            row.update(self._none_cols)
         c, vc = self._pdata.com[0], self._pdata.vcom[0]
-        row.update(zip(COM_POSITION + COM_VELOCITY, (c[0], c[1], c[2], vc[0], vc[1], vc[2])))
+        row.update(zip(self._com_cols, (*c.tolist(), *vc.tolist())))
         if extra:
             row.update(extra)
         return row

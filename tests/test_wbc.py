@@ -15,7 +15,7 @@ from granular_mpc.control.controller import WalkingController
 from granular_mpc.control.solvers.proxqp import QPSolution, QPStatus
 from granular_mpc.control.wbc import WBCReference
 from granular_mpc.robot.kinematics import balanced_stance
-from granular_mpc.rotations import rot_z
+from granular_mpc.rotations import matrix_from_quat_xyzw, rot_z
 
 
 def record_solutions(data) -> list[QPSolution]:
@@ -195,3 +195,19 @@ def test_compiled_assembly_builds_the_numpy_reference_qp(biped, sand, rigid, ter
     for tau_c, tau_n in taus:
         # the same QP solved by two warm-started solvers: equal within the QP's tolerance
         np.testing.assert_allclose(tau_c, tau_n, atol=1e-6 * max(1.0, np.abs(tau_n).max()))
+
+
+def test_free_flyer_placement_is_the_quaternion_matrix(biped):
+    """The compiled assembly and the run log take the trunk's rotation from Pinocchio's
+    free-flyer placement instead of building it from q's quaternion: the two are the same
+    numbers bit for bit (the same formula), for unit and slightly non-unit quaternions."""
+    model = biped.model
+    assert model.joints[1].shortname() == "JointModelFreeFlyer"
+    data = model.createData()
+    rng = np.random.default_rng(3)
+    for i in range(500):
+        q = biped.standing_configuration()
+        quat = rng.normal(size=4)
+        q[3:7] = quat / np.linalg.norm(quat) * (1.0 + 1e-9 * rng.normal() * (i % 2))
+        pin.forwardKinematics(model, data, q)
+        assert np.array_equal(data.oMi[1].rotation, matrix_from_quat_xyzw(q[3:7]))

@@ -116,6 +116,12 @@ class ControllerData:
         return self.mpc.failures + self.wbc.failures
 
 
+def _mean_point(points: np.ndarray) -> np.ndarray:
+    """Mean of the rows of ``points`` (n, 3): ``points.mean(axis=0)``'s arithmetic (the
+    sum over rows, divided by n) without its Python wrapper."""
+    return np.add.reduce(points, axis=0) / len(points)
+
+
 @dataclass(frozen=True)
 class WalkingController:
     """Controller model (immutable); changing state lives in :class:`ControllerData`."""
@@ -212,6 +218,12 @@ class WalkingController:
         return out[0], out[1]
 
     @cached_property
+    def _mass_gravity(self) -> tuple[float, np.ndarray]:
+        """The robot's mass [kg] and the gravity acceleration (0, 0, −g) in W [m/s²]
+        (per-tick constants; ``Biped.mass`` sums the bodies at every call)."""
+        return self.biped.mass, np.array([0.0, 0.0, -self.biped.gravity])
+
+    @cached_property
     def _sole(self) -> tuple:
         """Sole arc radius [m], half-angle [rad], slice offsets [m] and both feet's frame
         ids (left, right): the constants of :meth:`foot_points`."""
@@ -281,8 +293,8 @@ class WalkingController:
         omega = self.omega
         dcm = com[:2] + vcom[:2] / omega
         st_feet = [i for i in range(2) if stance[i]]
-        p_st = (feet[st_feet[0]].points.mean(axis=0)[:2] if len(st_feet) == 1
-                else 0.5 * (feet[0].points.mean(axis=0)[:2] + feet[1].points.mean(axis=0)[:2]))
+        p_st = (_mean_point(feet[st_feet[0]].points)[:2] if len(st_feet) == 1
+                else 0.5 * (_mean_point(feet[0].points)[:2] + _mean_point(feet[1].points)[:2]))
         max_lat = self.ground.lateral_ratio * self.config.mpc.com_height
         for i in range(2):
             if stance[i]:
@@ -323,7 +335,8 @@ class WalkingController:
         com_ref = xs[3:6] + (s - k0 - 1.0) * dt * xs[9:12]
         com_vel_ref = xs[9:12]
         f_tot = forces.sum(axis=(0, 1))
-        com_acc = f_tot / b.mass + np.array([0.0, 0.0, -b.gravity])
+        mass, g_vec = self._mass_gravity
+        com_acc = f_tot / mass + g_vec
         sink_accel = np.zeros(2)
         if self.ground.granular and self.mpc.N >= 3:
             k1, k2 = min(k + 1, self.mpc.N - 1), min(k + 2, self.mpc.N - 1)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import pinocchio as pin
@@ -174,6 +175,12 @@ class WholeBodyController:
         return AssemblyCaller(fns, self.nv, self.n_points,
                               (work.H, work.g, work.A, work.b, work.C, work.l, work.u,
                                work.lb, work.ub))
+
+    @cached_property
+    def _free_flyer(self) -> bool:
+        """Whether joint 1 of the model is the trunk's free flyer (its placement is the
+        trunk's rotation)."""
+        return self.biped.model.joints[1].shortname() == "JointModelFreeFlyer"
 
     def assembly_constants(self) -> AssemblyConstants:
         """The numbers the compiled assembly bakes in (gains, weights, limits, polytope)."""
@@ -395,53 +402,41 @@ class WholeBodyController:
         b = self.biped
         model, pd = b.model, data.pin
         a = data.assembly
-        P = a.views
         pin.computeAllTerms(model, pd, q, v)
         pin.updateFramePlacements(model, pd)
-        pin.centerOfMass(model, pd, _ACCELERATION, False)
+        com = pin.centerOfMass(model, pd, _ACCELERATION, False)
         a.M[:] = pd.M
         a.h[:] = pd.nle
         a.Jcom[:] = pd.Jcom
-        P["com"][:] = pd.com[0]
-        P["vcom"][:] = pd.vcom[0]
-        P["acom"][:] = pd.acom[0]
         fl, fr = b.foot_frame[SIDES[0]], b.foot_frame[SIDES[1]]
         a.J6[:6] = pin.getFrameJacobian(model, pd, fl, _LWA)
         a.J6[6:] = pin.getFrameJacobian(model, pd, fr, _LWA)
-        acc, vel = P["acc"], P["vel"]
-        acc[:6] = pin.getFrameClassicalAcceleration(model, pd, fl, _LWA).vector
-        acc[6:] = pin.getFrameClassicalAcceleration(model, pd, fr, _LWA).vector
-        vel[:6] = pin.getFrameVelocity(model, pd, fl, _LWA).vector
-        vel[6:] = pin.getFrameVelocity(model, pd, fr, _LWA).vector
-        rot, p_f = P["rot_f"], P["p_f"]
-        for i, fid in enumerate((fl, fr)):
-            oMf = pd.oMf[fid]
-            rot[9 * i:9 * i + 9] = oMf.rotation.ravel("F")
-            p_f[3 * i:3 * i + 3] = oMf.translation
-        k = 3 * self.n_points
-        P["offsets"][:k] = feet[0].offsets.ravel()
-        P["offsets"][k:] = feet[1].offsets.ravel()
-        R = matrix_from_quat_xyzw(q[3:7])
-        P["R"][:] = R.ravel("F")
-        P["omega_B"][:] = v[3:6]
-        P["err_W"][:] = pin.log3(ref.R_trunk @ R.T)
-        P["ref_omega"][:] = ref.omega
-        P["ref_com"][:] = ref.com
-        P["ref_com_vel"][:] = ref.com_vel
-        P["ref_com_acc"][:] = ref.com_acc
-        P["forces"][:] = ref.forces.reshape(-1)
-        P["swing_pos"][:] = ref.swing_pos.reshape(-1)
-        P["swing_vel"][:] = ref.swing_vel.reshape(-1)
-        P["swing_acc"][:] = ref.swing_acc.reshape(-1)
-        P["sink_accel"][:] = ref.sink_accel
-        P["w_force"][0] = self.config.w_force if ref.force_weight is None else ref.force_weight
-        share = P["share"]
+        oMl, oMr = pd.oMf[fl], pd.oMf[fr]
+        # the trunk's rotation from q's quaternion (x, y, z, w): Pinocchio's placement of
+        # the free-flyer joint, the same numbers as matrix_from_quat_xyzw(q[3:7]) bit for
+        # bit (the same formula; tests/test_wbc.py), without building it in Python
+        R = (np.ascontiguousarray(pd.oMi[1].rotation) if self._free_flyer
+             else matrix_from_quat_xyzw(q[3:7]))
         if ref.force_cap is not None:
             f_max = self.ground.polytope.f_max
-            share[0] = min(max(float(ref.force_cap[0]) / f_max, 0.0), 1.0)
-            share[1] = min(max(float(ref.force_cap[1]) / f_max, 0.0), 1.0)
+            share = (min(max(float(ref.force_cap[0]) / f_max, 0.0), 1.0),
+                     min(max(float(ref.force_cap[1]) / f_max, 0.0), 1.0))
         else:
-            share[:] = 1.0
+            share = (1.0, 1.0)
+        w_force = self.config.w_force if ref.force_weight is None else ref.force_weight
+        # the packed input p, in the order of wbc_qp.PACKED, written in one call
+        np.concatenate((
+            com, pd.vcom[0], pd.acom[0],
+            pin.getFrameClassicalAcceleration(model, pd, fl, _LWA).vector,
+            pin.getFrameClassicalAcceleration(model, pd, fr, _LWA).vector,
+            pin.getFrameVelocity(model, pd, fl, _LWA).vector,
+            pin.getFrameVelocity(model, pd, fr, _LWA).vector,
+            oMl.rotation.ravel("F"), oMr.rotation.ravel("F"), oMl.translation, oMr.translation,
+            feet[0].offsets.ravel(), feet[1].offsets.ravel(),
+            R.ravel("F"), v[3:6], pin.log3(ref.R_trunk @ R.T), ref.omega, ref.com,
+            ref.com_vel, ref.com_acc, ref.forces.ravel(), ref.swing_pos.ravel(),
+            ref.swing_vel.ravel(), ref.swing_acc.ravel(), ref.sink_accel, (w_force,), share),
+            out=a.p)
         a((bool(ref.stance[0]), bool(ref.stance[1])))
         return a.h[6:]
 

@@ -54,7 +54,7 @@ import numpy as np
 from ..exceptions import ConfigError, PlantDivergedError
 from ..codegen import compile_functions
 from .plant import Plant, PlantData
-from .step_sx import AUX_NAMES, StepBuilder, StepLayout, aux_foot
+from .step_sx import AUX_NAMES, AUX_SLICES, StepBuilder, StepLayout, aux_foot
 
 #: steps per compiled call in :meth:`CompiledPlant.step` (``mapaccum``)
 DEFAULT_CHUNK = 10
@@ -296,6 +296,46 @@ class CompiledPlant:
             d.steps += k
             if not (d.aux[-1] < self.plant.sim.max_speed) or not math.isfinite(d.x.sum()):
                 self._check(d.t, d.x, d.aux)
+
+    def advance_steps(self, d: "CompiledData", n_steps: int,
+                      points: np.ndarray | None = None) -> None:
+        """Advance ``d`` in place by ``n_steps`` single steps: the same as ``n_steps`` calls
+        of ``advance(d, 1)`` (one compiled step per step, the time summed step by step),
+        in one Python call.
+
+        Args:
+            d: the data (its held command is used).
+            n_steps: steps.
+            points: optional (2, 3) array; after every step, each foot whose contact was
+                evaluated writes its contact point [m, W] into its row (the read-out
+                :class:`~.fast_plant.FastPlantData` keeps).
+
+        Raises:
+            PlantDivergedError: as :meth:`step`, at the step where it happened.
+        """
+        if n_steps <= 0:
+            return
+        if self.verlet and not d.started:
+            d.call_start()
+        d.started = True
+        call = d._calls[False][1]
+        x, x_out, aux = d.x, d._x_out, d.aux
+        dt, max_speed = self.dt, self.plant.sim.max_speed
+        if points is not None:
+            ev0, ev1 = AUX_SLICES[0, "evaluated"].start, AUX_SLICES[1, "evaluated"].start
+            p0, p1 = AUX_SLICES[0, "point"], AUX_SLICES[1, "point"]
+        for _ in range(int(n_steps)):
+            call()
+            x[:] = x_out
+            d.t += dt
+            d.steps += 1
+            if not (aux[-1] < max_speed) or not math.isfinite(x.sum()):
+                self._check(d.t, x, aux)
+            if points is not None:
+                if aux[ev0] > 0.5:
+                    points[0] = aux[p0]
+                if aux[ev1] > 0.5:
+                    points[1] = aux[p1]
 
     def _check(self, t: float, x: np.ndarray, aux: np.ndarray) -> None:
         L, sim = self.layout, self.plant.sim

@@ -32,7 +32,7 @@ import pinocchio as pin
 
 from .compiled import CompiledPlant
 from .plant import Plant
-from .step_sx import aux_foot
+from .step_sx import AUX_SLICES, aux_foot
 
 
 class FastPlant:
@@ -104,6 +104,19 @@ class FastPlant:
         c.advance(data, 1)
         d.note_step()
 
+    def step_n(self, d: "FastPlantData", n: int) -> None:
+        """Advance ``d`` by ``n`` steps with its held torque: the same as ``n`` calls of
+        :meth:`step` (the same compiled step per step, the same time sums and read-outs),
+        without their per-step Python. A callable ``base_wrench`` is stepped by
+        :meth:`step` (it is evaluated per step)."""
+        w = d.base_wrench
+        if callable(w) or (self.compiled.verlet and not d.data.started):
+            for _ in range(n):
+                self.step(d)
+            return
+        d.data.wrench[:] = 0.0 if w is None else w
+        self.compiled.advance_steps(d.data, n, d._point)
+
     def simulate(self, d: "FastPlantData", duration: float, controller=None) -> None:
         """Step for ``duration`` [s]; ``controller(d) -> tau_a`` is called every step."""
         n = int(round(duration / self.dt))
@@ -164,6 +177,11 @@ class FastPlantData:
         self.contact = ContactView(data)
         self._point = np.zeros((2, 3))
         self._idx_v = plant.biped.idx_v
+        L = data.layout
+        # views into the compiled state (updated in place by every call)
+        self._states = data.x[L.contact].reshape(2, L.n_patches, L.patch_state)
+        self._evaluated = (AUX_SLICES[0, "evaluated"].start, AUX_SLICES[1, "evaluated"].start)
+        self._point_sl = (AUX_SLICES[0, "point"], AUX_SLICES[1, "point"])
 
     @property
     def pin(self):
@@ -203,9 +221,11 @@ class FastPlantData:
 
     def note_step(self) -> None:
         """Keep each evaluated foot's contact point (called by :meth:`FastPlant.step`)."""
-        for foot in (0, 1):
-            if aux_foot(self.data.aux, foot, "evaluated")[0] > 0.5:
-                self._point[foot] = aux_foot(self.data.aux, foot, "point")
+        aux = self.data.aux
+        if aux[self._evaluated[0]] > 0.5:
+            self._point[0] = aux[self._point_sl[0]]
+        if aux[self._evaluated[1]] > 0.5:
+            self._point[1] = aux[self._point_sl[1]]
 
     # ------------------------------------------------------------------ read-outs
     def foot_force(self, foot: int) -> np.ndarray:
@@ -217,9 +237,7 @@ class FastPlantData:
         return self._point[foot].copy()
 
     def foot_in_contact(self, foot: int) -> bool:
-        L = self.data.layout
-        states = self.data.x[L.contact].reshape(2, L.n_patches, L.patch_state)
-        return bool(states[foot, :, 6].max() > 0.5)
+        return bool(self._states[foot, :, 6].max() > 0.5)
 
     def foot_diag(self, foot: int) -> np.ndarray:
         """Mean over the foot's patches of (depth, f_cap_z, x_s, y_s, z_s, ψ_c)."""

@@ -48,11 +48,14 @@ _FOOT_NAMES = (tuple(f"force_{a}" for a in AXES) + tuple(f"point_{a}" for a in A
 AUX_NAMES = tuple(f"{side}_{name}" for side in SIDES for name in _FOOT_NAMES) + ("speed_max",)
 
 
+#: (foot, part) → slice of that part in an aux vector
+AUX_SLICES = {(foot, part): slice(foot * AUX_PER_FOOT + sl.start, foot * AUX_PER_FOOT + sl.stop)
+              for foot in (0, 1) for part, sl in AUX_FOOT}
+
+
 def aux_foot(aux, foot: int, part: str):
     """The ``part`` (see :data:`AUX_FOOT`) of foot ``foot`` in an aux vector or rows (…, n)."""
-    sl = dict(AUX_FOOT)[part]
-    base = foot * AUX_PER_FOOT
-    return aux[..., base + sl.start: base + sl.stop]
+    return aux[..., AUX_SLICES[foot, part]]
 
 
 @dataclass(frozen=True)
@@ -353,5 +356,5 @@ class StepBuilder:
                            ["x", "u", "theta", "wrench"], ["x_next"])
 
 
-__all__ = ["AUX_FOOT", "AUX_NAMES", "AUX_PER_FOOT", "aux_foot", "StepLayout", "StepBuilder",
-           "symbolic_contact", "trace_joint_effect_params"]
+__all__ = ["AUX_FOOT", "AUX_NAMES", "AUX_PER_FOOT", "AUX_SLICES", "aux_foot", "StepLayout",
+           "StepBuilder", "symbolic_contact", "trace_joint_effect_params"]

@@ -8,6 +8,13 @@ written: ``run``, ``synth`` and user scripts consume the rows as they like.
 A log row at time t holds the state at t and the torque commanded at t (held until the
 next controller tick).
 
+The plant steps between two events (a controller tick, a log row, a push edge, the end)
+are taken in one call where the plant offers ``step_n`` (the compiled plant,
+:meth:`~granular_mpc.dynamics.fast_plant.FastPlant.step_n`: the same single steps, so the
+rows are bit for bit those of one call per step, ``tests/test_loop.py``); a
+``state.stop_reason`` set by a signal handler during such a call ends the loop after it
+(at most one controller period later).
+
 Falls are checked at every controller tick: trunk origin less than
 ``fall.min_trunk_height`` above the free surface, or |roll| > ``fall.max_roll_deg``, or
 |pitch| > ``fall.max_pitch_deg`` (Z-Y-X Euler angles of the trunk).
@@ -122,6 +129,8 @@ def _step_rows(sim: Simulation, state: LoopState | None) -> Iterator[dict]:
     fall_cfg = sc.fall
     n_steps = sim.n_steps
     half_dt = 0.5 * sim.dt        # window edges fall on the nearest plant step
+    step_n = getattr(plant, "step_n", None)
+    chunked = step_n is not None
     while True:
         k = st.step
         t = pd.t
@@ -130,12 +139,14 @@ def _step_rows(sim: Simulation, state: LoopState | None) -> Iterator[dict]:
         if k % sim.control_every == 0 and not last:
             if walk:
                 tau = ctrl.compute(cd, t, pd.q, pd.v)
+            elif sim.playback is not None:
+                tau = sim.playback.torque(t, pd.q[sim.biped.idx_q], pd.v[sim.biped.idx_v])
             else:
                 qa = pd.q[sim.biped.idx_q]
                 dqa = pd.v[sim.biped.idx_v]
                 tau = np.clip(kp * (q_hold - qa) - kd * dqa, -tau_max, tau_max)
             pd.set_torque(tau)
-            if fall_cfg.enabled and walk and st.fall is None:
+            if fall_cfg.enabled and (walk or sim.playback is not None) and st.fall is None:
                 why = check_fall(sim, pd.q)
                 if why is not None:
                     st.fall = FallEvent(t, why)
@@ -174,8 +185,32 @@ def _step_rows(sim: Simulation, state: LoopState | None) -> Iterator[dict]:
         if st.stop_reason is not None:
             st.end_reason = st.stop_reason
             return
-        plant.step(pd)
-        st.step += 1
+        # the steps up to the next event (controller tick, log row, end, push edge) have
+        # nothing to do between them: stepped in one call (the same single steps)
+        n = _quiet_steps(k, sim, active, pushes, pd.t, half_dt) if chunked else 1
+        if n > 1:
+            step_n(pd, n)
+        else:
+            plant.step(pd)
+        st.step += n
+
+
+def _quiet_steps(k: int, sim: Simulation, active: PushWindow | None, pushes: list,
+                 t: float, half_dt: float) -> int:
+    """How many plant steps from step ``k`` (time ``t`` [s]) the loop can take in one call:
+    up to the next controller tick, log row or the end, and stopping at the step where
+    the next push edge is reached (the loop's own test, on the time summed step by step)."""
+    n = min(sim.control_every - k % sim.control_every, sim.log_every - k % sim.log_every,
+            max(sim.n_steps - k, 1))
+    edge = (active.end - half_dt if active is not None
+            else pushes[0].start - half_dt if pushes else None)
+    if edge is not None and n > 1:
+        dt = sim.dt
+        for j in range(1, n):
+            t += dt
+            if t >= edge:
+                return j
+    return n
 
 
 __all__ = ["closed_loop", "check_fall", "trunk_roll_pitch", "planned_stance", "solver_columns"]

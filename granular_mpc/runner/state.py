@@ -34,7 +34,8 @@ class LoopState:
         controller: controller data (``None`` in drop mode).
         step: plant steps taken.
         fall: the first fall, if any.
-        stop_reason: set (e.g. by a signal handler) to end the loop at the next step.
+        stop_reason: set (e.g. by a signal handler) to end the loop after the current plant
+            call (at most one controller period later).
         end_reason: why the loop ended (``duration reached``, ``fell: …``, the stop reason).
         pushes_applied: push windows that have started.
         rng: the run's random generator (seeded with ``sim.seed``): anything random in a
