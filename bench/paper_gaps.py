@@ -2,6 +2,7 @@
 
     GRANULAR_MPC_PROXSUITE=generic python bench/paper_gaps.py [--out runs/paper_gaps]
         [--json PATH] [--cases base actuators ...] [--seconds 12] [--quick]
+        [--dataset DIR/dataset] [--fx] [--replay-only]
 
 Each *knob* changes one thing of the paper comparison's sweep protocol
 (``sim/paper_sweep.yaml``: rigid-ground controller, the paper's gait + 39 ms touchdown
@@ -22,6 +23,13 @@ plateau detector: its relative threshold doubled (0.1 → 0.2 of the stance's me
 The 0.5 m/s sand run of the paper sweep falls; ``fall_*`` cases re-run it and record the
 first failing signals (the thresholds of ``bench/paper_ablation.py``) and one ablation of
 the cause.
+
+With ``--dataset`` (the comparison's data set, ``DIR/dataset``) two replay ablations run
+too: the rigid model's low F_z (how the stance foot is held, the impact, Newton's
+balance) and the planar model's intrusion error (the frontal-plane state its terrain law
+sees); with ``--fx`` the knobs of ``bench/paper_fx.py`` (the mid-stance F_x swing of the
+default sand run). ``--replay-only`` runs only those and merges them into an existing
+``--json``.
 
 Writes ``OUT/runs/<case>_<terrain>/`` (run folders) and, with ``--json``, every figure as
 JSON (the paper comparison's claims cite these numbers: docs/paper-experiment-notes.md §7).
@@ -44,7 +52,9 @@ from types import SimpleNamespace
 os.environ.setdefault("GRANULAR_MPC_PROXSUITE", "generic")   # bit-reproducible runs
 
 import numpy as np  # noqa: E402
+import pinocchio as pin  # noqa: E402
 from paper_ablation import failing_signals as ablation_signals  # noqa: E402
+from paper_fx import main as fx_main  # noqa: E402
 
 from granular_mpc.analysis import plateau_by_stance, rolling_from_log  # noqa: E402
 from granular_mpc.columns import joint_columns  # noqa: E402
@@ -57,8 +67,10 @@ from granular_mpc.runner import run_scenario  # noqa: E402
 from granular_mpc.scenario import load_scenario  # noqa: E402
 from granular_mpc.validation.dataformat import load_dataset  # noqa: E402
 from granular_mpc.validation.prepare import stance_windows, windows_frame  # noqa: E402
-from granular_mpc.validation.replay import (build_replay_model, model_terrain,  # noqa: E402
+from granular_mpc.validation.replay import (Variant, build_replay_model,  # noqa: E402
+                                            model_terrain, replay_granular, replay_planar,
                                             replay_rigid)
+from granular_mpc.validation.replay.rigid import measured_configurations  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIO = ROOT / "sim" / "paper_sweep.yaml"
@@ -286,34 +298,93 @@ def readings(sand: Path, rigid: Path) -> dict:
     return out
 
 
-def rigid_grf_ablation(dataset: Path) -> dict:
-    """The rigid-ground model's GRF on the comparison's data set, two ways.
+#: the rigid-model replays of :func:`rigid_grf_ablation`: label → (other foot free,
+#: constraint feedback k [1/s], contact mode, impact mode) — one knob each
+RIGID_CASES = {
+    "as_validate": (False, 50.0, "pin", "project"),
+    "other_foot_free": (True, 50.0, "pin", "project"),
+    "stabilisation_x4": (False, 200.0, "pin", "project"),
+    "impact_soft": (False, 50.0, "pin", "soft"),
+    "pin_current": (False, 50.0, "pin_current", "project"),
+    "rolling": (False, 50.0, "rolling", "project"),
+    "measured_sink": (False, 50.0, "measured_sink", "project"),
+    "measured_path": (False, 50.0, "measured", "project"),
+}
 
-    ``as_validate``: the stances replayed as ``validate --model rigid`` does (the other foot
-    pinned too when it starts in contact — the 39 ms touchdown double support — until its
-    constraint force would pull). ``other_foot_free``: the same replay with the other foot
-    free from the start (single stance). ``stabilisation_x4``: the constraint's drift
-    feedback k 50 → 200 1/s. Per GRF axis: mean |F| predicted / measured, and
-    the mean vertical force over the stance [N] (measured vs predicted)."""
+
+def _replay_setup(dataset: Path):
     ds = load_dataset(dataset)
     biped = load_biped(ds.meta.robot, with_visuals=False)
     rm = build_replay_model(biped, model_terrain("dry_sand"),
                             sample_rate_hz=ds.meta.sample_rate_hz)
     windows = stance_windows(ds, biped, contact_stiffness=rm.contact_stiffness)
+    return ds, biped, rm, windows
+
+
+def measured_newton(biped, windows, dt_s: float) -> dict:
+    """Newton on the measured stances: mean stance-foot F_z [N] against m (g + Δv_z/T) of
+    the measured CoM (v_z by differences of the first and last two samples) [N], and the
+    CoM height change over the stance [mm]."""
+    mdl = biped.model
+    data = mdl.createData()
+    m, g = biped.mass, 9.81
+    fz, need, dz = [], [], []
+    for w in windows:
+        qs = measured_configurations(biped, w)
+        z = []
+        for k in (0, 1, w.n - 2, w.n - 1):
+            pin.centerOfMass(mdl, data, qs[k])
+            z.append(float(data.com[0][2]))
+        dv = (z[3] - z[2] - z[1] + z[0]) / dt_s
+        fz.append(float(np.mean(w.meas["grf_z"])))
+        need.append(m * (g + dv / (w.n * dt_s)))
+        dz.append(1e3 * (z[3] - z[0]))
+    return {"mean_fz_N": float(np.mean(fz)), "m_g_plus_a_N": float(np.mean(need)),
+            "other_foot_fz_N": float(np.mean(need) - np.mean(fz)),
+            "com_dz_mm": float(np.mean(dz))}
+
+
+def rigid_grf_ablation(dataset: Path) -> dict:
+    """The rigid-ground model's GRF on the comparison's data set, one knob at a time.
+
+    ``as_validate``: the stances replayed as ``validate --model rigid`` does (the other foot
+    pinned too when it starts in contact — the 39 ms touchdown double support — until its
+    constraint force would pull). ``other_foot_free``: the other foot free from the start.
+    ``stabilisation_x4``: the constraint's drift feedback k 50 → 200 1/s. ``impact_soft``:
+    no plastic-impact projection of the initial velocity. ``pin_current``: the pinned
+    material point with its Jacobian updated every step. ``rolling``: the sole rolling
+    without slip. ``measured_sink``: the contact point sinks as measured (x, y pinned).
+    ``measured_path``: the contact point follows its measured path (sinking and slip).
+    Per case: mean |F| predicted / measured per axis, the mean F_z [N], and Newton's
+    balance (the other foot's mean F_z, m (g + Δv_z/T) of the replayed CoM [N], the CoM's
+    height change and final vertical velocity); ``measured_newton`` the same on the data."""
+    ds, biped, rm, windows = _replay_setup(dataset)
     chans = ["grf_x", "grf_y", "grf_z"]
     meas = windows_frame(windows, None, chans)
+    dt_s = 1.0 / ds.meta.sample_rate_hz
     out = {"n_stances": len(windows),
            "n_other_foot_in_contact": int(sum(w.feet[1 - w.foot].in_contact for w in windows)),
-           "measured_mean_fz_N": float(meas["grf_z"].mean())}
-    for label, free, k in (("as_validate", False, 50.0), ("other_foot_free", True, 50.0),
-                           ("stabilisation_x4", False, 200.0)):
-        preds = []
+           "measured_mean_fz_N": float(meas["grf_z"].mean()),
+           "measured_newton": measured_newton(biped, windows, dt_s),
+           "weight_N": 9.81 * biped.mass}
+    mdl = biped.model
+    data = mdl.createData()
+    for label, (free, k, contact, impact) in RIGID_CASES.items():
+        preds, other, need, dz, vz_end = [], [], [], [], []
         for w in windows:
             if free and w.feet[1 - w.foot].in_contact:
                 feet = list(w.feet)
                 feet[1 - w.foot] = dataclasses.replace(feet[1 - w.foot], in_contact=False)
                 w = dataclasses.replace(w, feet=tuple(feet))
-            preds.append(replay_rigid(rm, w, stabilisation=k))
+            p = replay_rigid(rm, w, stabilisation=k, contact=contact, impact=impact,
+                             diagnostics=True)
+            preds.append(p)
+            pin.centerOfMass(mdl, data, w.q0, w.v0)
+            z0, vz0 = float(data.com[0][2]), float(data.vcom[0][2])
+            other.append(float(np.nanmean(p["other_force"][:, 2])))
+            need.append(biped.mass * (9.81 + (p["com_vz"][-1] - vz0) / (w.n * dt_s)))
+            dz.append(1e3 * (p["com_z"][-1] - z0))
+            vz_end.append(float(p["com_vz"][-1]))
         pred = windows_frame(windows, preds, chans)
         ratio = {}
         for c in chans:
@@ -321,7 +392,60 @@ def rigid_grf_ablation(dataset: Path) -> dict:
             ok = np.isfinite(m) & np.isfinite(p)
             ratio[c] = float(np.abs(p[ok]).mean() / np.abs(m[ok]).mean())
         out[label] = {"ratio": ratio, "mean_fz_N": float(np.nanmean(pred["grf_z"])),
+                      "other_foot_fz_N": float(np.nanmean(other)),
+                      "m_g_plus_a_N": float(np.nanmean(need)),
+                      "com_dz_mm": float(np.nanmean(dz)),
+                      "com_vz_end_mps": float(np.nanmean(vz_end)),
                       "diverged": int(sum(bool(p.get("diverged")) for p in preds))}
+    return out
+
+
+#: the planar-model replays of :func:`planar_intrusion_ablation` (``frontal`` option)
+PLANAR_CASES = ("model", "measured", "measured_roll", "measured_lateral")
+
+
+def planar_intrusion_ablation(dataset: Path) -> dict:
+    """The decoupled planar model's intrusion error, one knob at a time.
+
+    The 3-D granular model and the planar model replay the comparison's stances; the planar
+    model's terrain law sees the stance foot's frontal-plane state from its frontal model
+    (``model``, the paper's), or from the measured 3-D plant: lateral position, velocity and
+    foot roll (``measured``), only the roll (``measured_roll``), only the lateral position
+    and velocity (``measured_lateral``). Per case: intrusion_z RMSE and mean signed error
+    (predicted − measured) [mm], and per 10 % stance-phase bin the signed intrusion error
+    [mm], stance-foot F_z error [N] and mean knee-angle error [rad]."""
+    _, _, rm, windows = _replay_setup(dataset)
+    meas = windows_frame(windows, None, ["intrusion_z"])["intrusion_z"].to_numpy(dtype=float)
+    phase = np.concatenate([w.phase for w in windows])
+    bins = np.minimum((phase / 10.0).astype(int), 9)
+    depth = [float(1e3 * np.nanmean(meas[bins == b])) for b in range(10)]
+    out = {"n_stances": len(windows), "measured_depth_by_phase_mm": depth}
+
+    knees = [c for c in windows[0].meas if c.startswith("q_") and c.endswith("_knee")]
+    meas_fz = windows_frame(windows, None, ["grf_z"])["grf_z"].to_numpy(dtype=float)
+    meas_kn = windows_frame(windows, None, knees)
+
+    def by_phase(e, scale):
+        ok = np.isfinite(e)
+        return [float(scale * e[ok & (bins == b)].mean()) for b in range(10)]
+
+    def score(preds):
+        fr = windows_frame(windows, preds, ["intrusion_z", "grf_z", *knees])
+        e = fr["intrusion_z"].to_numpy(dtype=float) - meas
+        ok = np.isfinite(e)
+        kn = np.mean([fr[c].to_numpy(dtype=float) - meas_kn[c].to_numpy(dtype=float)
+                      for c in knees], axis=0)
+        return {"rmse_mm": float(1e3 * np.sqrt(np.mean(e[ok] ** 2))),
+                "bias_mm": float(1e3 * e[ok].mean()),
+                "error_by_phase_mm": by_phase(e, 1e3),
+                "grf_z_error_by_phase_N": by_phase(fr["grf_z"].to_numpy(dtype=float) - meas_fz,
+                                                   1.0),
+                "knee_error_by_phase_rad": by_phase(kn, 1.0),
+                "diverged": int(sum(bool(p.get("diverged")) for p in preds))}
+
+    out["granular"] = score([replay_granular(rm, w, Variant()) for w in windows])
+    for mode in PLANAR_CASES:
+        out[f"planar_{mode}"] = score([replay_planar(rm, w, frontal=mode) for w in windows])
     return out
 
 
@@ -353,6 +477,29 @@ def table(results: list[RunFigures], pairs: dict) -> str:
     return "\n".join(lines)
 
 
+def replay_readings(args) -> dict:
+    """The readings that need no paper-sweep run: the rigid-model GRF and planar-model
+    intrusion replays (``args.dataset``) and the F_x-swing knobs (``args.fx``)."""
+    out = {}
+    if args.dataset:
+        out["rigid_grf"] = rigid_grf_ablation(Path(args.dataset))
+        out["planar_intrusion"] = planar_intrusion_ablation(Path(args.dataset))
+    if args.fx:
+        res = fx_main(["--out", str(Path(args.out) / "fx"), *(["--reuse"] if args.reuse else [])])
+        out["fx_swing"] = {r.knob: dataclasses.asdict(r) for r in res}
+    return out
+
+
+def merge_readings(path: Path, readings_: dict, command: str = "") -> None:
+    """Write ``readings_`` into the readings of the JSON at ``path`` (created if absent),
+    keeping every other entry; ``command`` is appended to its ``merged`` list."""
+    doc = json.loads(path.read_text()) if path.is_file() else {}
+    doc.setdefault("readings", {}).update(readings_)
+    doc.setdefault("merged", []).append({"command": command, "readings": sorted(readings_)})
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(doc, indent=1, default=str))
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="runs/paper_gaps", help="folder for the runs")
@@ -367,7 +514,11 @@ def main(argv=None) -> dict:
                     help="the paper comparison's data set (DIR/dataset): also run the rigid "
                          "model's GRF ablation on it")
     ap.add_argument("--replay-only", action="store_true",
-                    help="with --dataset: only the replay ablation (no closed-loop runs)")
+                    help="only the replay ablations (--dataset) and the F_x knobs (--fx), "
+                         "merged into the readings of an existing --json (its other entries "
+                         "kept); no paper-sweep runs")
+    ap.add_argument("--fx", action="store_true",
+                    help="also run the F_x-swing knobs of bench/paper_fx.py (8 s each)")
     args = ap.parse_args(argv)
     by_name = {k.name: k for k in KNOBS}
     if args.list:
@@ -375,13 +526,14 @@ def main(argv=None) -> dict:
             print(f"{k.name:14s} {'+'.join(k.terrains):15s} {k.speed:g} m/s  {k.what}")
         return {}
     if args.replay_only:
-        if not args.dataset:
-            ap.error("--replay-only needs --dataset")
-        rep = rigid_grf_ablation(Path(args.dataset))
+        if not args.dataset and not args.fx:
+            ap.error("--replay-only needs --dataset and/or --fx")
+        rep = replay_readings(args)
         print(json.dumps(rep, indent=1))
         if args.json:
-            Path(args.json).write_text(json.dumps({"rigid_grf": rep}, indent=1))
-        return {"rigid_grf": rep}
+            merge_readings(Path(args.json), rep, " ".join(["python bench/paper_gaps.py",
+                                                            *(argv or sys.argv[1:])]))
+        return rep
     names = list(QUICK_KNOBS) if args.quick else (args.cases or [k.name for k in KNOBS])
     unknown = [n for n in names if n not in by_name]
     if unknown:
@@ -420,8 +572,7 @@ def main(argv=None) -> dict:
         if sand is not None:
             pairs[name] = pair_figures(sand, rigid)
     extra = readings(folders[("base", SAND)], folders[("base", RIGID)])
-    if args.dataset:
-        extra["rigid_grf"] = rigid_grf_ablation(Path(args.dataset))
+    extra.update(replay_readings(args))
     print(table(results, pairs))
     print(json.dumps(extra, indent=1))
     doc = {"command": " ".join(["python bench/paper_gaps.py", *(argv or sys.argv[1:])]),

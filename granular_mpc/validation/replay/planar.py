@@ -3,6 +3,13 @@
 Paper Sec. II: sagittal 7-DoF and frontal 5-DoF (:mod:`granular_mpc.dynamics.planar`)
 driven by the mapped torques; each foot's force from the 3-D terrain law evaluated on its
 planar kinematics (x, z to the sagittal model; y, z to the frontal one).
+
+Opt-in ablation (``bench/paper_gaps.py``; the default is the paper's model): ``frontal``
+— what the terrain law sees of the stance foot's frontal-plane state: ``"model"`` (the
+frontal model's lateral position and velocity, no foot roll), ``"measured"`` (the measured
+3-D plant's lateral position, velocity and foot roll), ``"measured_roll"`` (only the
+measured foot roll), ``"measured_lateral"`` (only the measured lateral position and
+velocity).
 """
 
 from __future__ import annotations
@@ -19,11 +26,15 @@ from ...dynamics.planar import (actuated_from_frontal, actuated_from_sagittal,
                                 swing_contact_jacobian)
 from ...robot.model import SIDES, Biped
 from ...robot.planar import frontal_view, sagittal_view
-from ...rotations import matrix_from_quat_xyzw, roll_pitch_from_quat_xyzw
-from ..prepare import StanceWindow
+from ...rotations import matrix_from_quat_xyzw, roll_pitch_from_quat_xyzw, rot_x, rot_y
+from ..prepare import StanceWindow, patch_points
 from .model import ReplayModel, Variant
 from .measurement import true_window
 from .outputs import replay_outputs, set_foot_state
+from .rigid import measured_configurations, smoothed_path
+
+#: the ``frontal`` options of :func:`replay_planar`
+FRONTAL_MODES = ("model", "measured", "measured_roll", "measured_lateral")
 
 
 _PLANAR_CACHE: dict = {}
@@ -37,15 +48,34 @@ def _planar(biped: Biped, side: str):
     return _PLANAR_CACHE[key]
 
 
-def _planar_kin(kin, x, y, z, pitch, vx, vy, vz, wy, R) -> None:
+def _planar_kin(kin, x, y, z, pitch, vx, vy, vz, wy, R, roll: float = 0.0) -> None:
     c, s_ = math.cos(pitch), math.sin(pitch)
     kin[0:3] = (x, y, z + R)
-    kin[3:12] = (c, 0.0, -s_, 0.0, 1.0, 0.0, s_, 0.0, c)     # R_y(pitch), column-major
+    if roll == 0.0:
+        kin[3:12] = (c, 0.0, -s_, 0.0, 1.0, 0.0, s_, 0.0, c)     # R_y(pitch), column-major
+    else:
+        kin[3:12] = (rot_x(roll) @ rot_y(pitch)).flatten(order="F")
     kin[12:15] = (vx, vy, vz)
     kin[15:18] = (0.0, wy, 0.0)
 
 
-def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None = None) -> dict:
+def measured_frontal(biped: Biped, w: StanceWindow, dt_s: float):
+    """The stance foot's measured frontal-plane state per scored sample: contact-point
+    lateral position y [m] (local frame), its velocity [m/s] and the foot's roll [rad]."""
+    data = biped.model.createData()
+    fid = biped.foot_frame[w.side]
+    y, roll = np.empty(w.n), np.empty(w.n)
+    for k, q in enumerate(measured_configurations(biped, w)):
+        pin.framesForwardKinematics(biped.model, data, q)
+        Rf = data.oMf[fid].rotation
+        y[k] = patch_points(biped, data.oMf[fid]).mean(axis=0)[1]
+        roll[k] = math.atan2(Rf[2, 1], Rf[2, 2])
+    ys, vys, _ = smoothed_path(y[:, None], dt_s)
+    return ys[:, 0], vys[:, 0], roll
+
+
+def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None = None, *,
+                  frontal: str = "model") -> dict:
     """Replay on the paper's decoupled sagittal + frontal models.
 
     Both feet use the terrain law of the 3-D model evaluated on their planar kinematics:
@@ -54,7 +84,10 @@ def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None =
     Jacobians. The x and z forces act on the sagittal model, y and z on the frontal one
     (decoupled: each plane sees the same vertical force); the swing foot's force enters
     through the swing contact Jacobian. Semi-implicit Euler at the plant step.
+    ``frontal``: :data:`FRONTAL_MODES` (module docstring); ``"model"`` is the paper's.
     """
+    if frontal not in FRONTAL_MODES:
+        raise ValueError(f"frontal must be one of {FRONTAL_MODES}, got {frontal!r}")
     variant = variant or Variant()
     biped = model.biped
     scored = w
@@ -102,12 +135,17 @@ def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None =
     Bs = np.vstack([np.eye(5), np.zeros((2, 5))])
     Bf = np.vstack([np.eye(3), np.zeros((2, 3))])
 
-    def foot_force(k_, x, y, z, ptch, vx, vy, vz, wy):
+    if frontal != "model":
+        y_m, vy_m, roll_m = measured_frontal(biped, w, dt * model.steps_per_sample)
+    use_lat = frontal in ("measured", "measured_lateral")
+    use_roll = frontal in ("measured", "measured_roll")
+
+    def foot_force(k_, x, y, z, ptch, vx, vy, vz, wy, roll=0.0):
         buf = cd.feet[k_]
         if z - w.feet[k_].surface - dz > 0.005 and buf.state[:, 6].max() < 0.5:
             cd.skip(k_)
             return np.zeros(3)
-        _planar_kin(buf.kin, x, y, z, ptch, vx, vy, vz, wy, R)
+        _planar_kin(buf.kin, x, y, z, ptch, vx, vy, vz, wy, R, roll)
         cd.evaluate(k_)
         return buf.force.sum(axis=0)
 
@@ -117,8 +155,10 @@ def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None =
             tf = frontal_torques(fv, w.tau[k])
             for _ in range(model.steps_per_sample):
                 # stance foot at C1
-                f = foot_force(i, qs[5], qf[3], qs[6], qs[3] + sv.foot_mount_pitch,
-                               dqs[5], dqf[3], dqs[6], dqs[3])
+                f = foot_force(i, qs[5], y_m[k] if use_lat else qf[3], qs[6],
+                               qs[3] + sv.foot_mount_pitch, dqs[5],
+                               vy_m[k] if use_lat else dqf[3], dqs[6], dqs[3],
+                               roll_m[k] if use_roll else 0.0)
                 # swing foot at the planar swing contact point
                 ps, pf = points(sag, qs), points(fro, qf)
                 Jsw_s, Jsw_f = swing_contact_jacobian(sag, qs), swing_contact_jacobian(fro, qf)
@@ -149,4 +189,4 @@ def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None =
     return replay_outputs(qa, grf, intr, np.zeros(n), diverged, variant, scored, J)
 
 
-__all__ = ["replay_planar"]
+__all__ = ["replay_planar", "measured_frontal", "FRONTAL_MODES"]
