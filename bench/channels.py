@@ -1,8 +1,8 @@
 """Channel-removal benchmark of ``diagnose``: the same cases with channel groups removed.
 
     GRANULAR_MPC_PROXSUITE=generic python bench/channels.py [--quick] [--json PATH]
-        [--effects NAME:k=v …] [--seeds 1 2] [--nulls 2] [--level 1.0] [--steps 7]
-        [--out DIR [--reuse]] [--workers N]
+        [--effects NAME:k=v …] [--seeds 1 2] [--nulls 2 | --null-seeds 104 105]
+        [--level 1.0] [--steps 7] [--out DIR [--reuse] [--data-only]] [--workers N]
 
 For every hidden effect and seed (``bench/recovery.py``'s effects), one plant run
 (``synth``, no noise, ``--speeds`` × ``--steps`` stances) gets the realistic sensor
@@ -26,10 +26,14 @@ Null data sets (no hidden effect, seeds 100 …) go through the same four varian
 Per case and variant: the effect ranked first, the injected effect's rank (``-``: the
 report says it cannot be assessed), its main coefficient's error (as in
 ``bench/recovery.py``: of the magnitude, for ``depth_hardening`` of n − 1), what was
-added, and the candidates the report says it cannot assess. Summary per variant: top-1
+added, the effect the best-candidate statement presents as *the answer* (none when it
+says "only the closest proxy" or "ambiguous"), the candidates the report says it cannot
+assess and the pairs it calls indistinguishable with the measured channels. Summary per variant: top-1
 rate over all effect cases, top-1 rate over the cases whose injected effect the variant
 claims it can assess, and the all-channel top-1 rate on those same cases (the target:
-proprio ≥ 80 % of it), coefficient within 15 %, null data sets with something added.
+proprio ≥ 80 % of it), coefficient within 15 %, null data sets with something added,
+effect data sets with a wrong term added (and how many of those were presented as the
+answer).
 """
 
 from __future__ import annotations
@@ -83,7 +87,13 @@ def run_case(data: Path, effect: str | None, out: Path, seed: int, workers: int 
     first = diag.ranking[0].effect if diag.ranking else "-"
     row = {"first": first, "added": ",".join(diag.added) or "-",
            "status": diag.verdict.status, "diagnose_s": time.perf_counter() - t0,
+           "ambiguous": "AMBIGUOUS" in diag.verdict.text,
            "not_assessable": cov["not_assessable"],
+           "indistinguishable": [f"{a}~{b}" for e in cov["effects"]
+                                 for a, b in [(e["name"], t) for t in
+                                              e.get("indistinguishable_from", ())]],
+           "best_candidate": diag.best_candidate,
+           "presented_as_answer": presented_as_answer(diag.best_candidate),
            "sizes": {e["name"]: e["size"] for e in cov["effects"]},
            "rank": None, "coef": None, "coef_err": None, "assessable": None}
     if effect is None:
@@ -95,6 +105,14 @@ def run_case(data: Path, effect: str | None, out: Path, seed: int, workers: int 
         coef = entry.value_of(main)
         row.update(rank=entry.rank, coef=coef, coef_err=(coef - true) / (true - neutral))
     return row
+
+
+def presented_as_answer(best_candidate: str) -> str:
+    """The effect the diagnosis presents as *the answer* (its best-candidate statement
+    "<name> is the answer: …"), or "" when it presents none (only a closest proxy,
+    ambiguous, nothing needed)."""
+    head, sep, _ = best_candidate.partition(" is the answer")
+    return head if sep and " " not in head else ""
 
 
 def summarise(rows: list[dict]) -> dict:
@@ -120,6 +138,15 @@ def summarise(rows: list[dict]) -> dict:
                                             and abs(r["coef_err"]) <= 0.15 for r in claim]),
             "null_cases": len(nul),
             "null_false_alarms": sum(r["added"] != "-" for r in nul),
+            # an added term other than the injected one, presented as the answer
+            "wrong_answer": sum(bool(r.get("presented_as_answer"))
+                                and r["presented_as_answer"] != r["effect"].split(":")[0]
+                                for r in eff + nul),
+            "wrong_term_added": sum(any(a != r["effect"].split(":")[0]
+                                        for a in r["added"].split(",") if a != "-")
+                                    for r in eff),
+            "indistinguishable": sorted({p for r in eff + nul
+                                         for p in r.get("indistinguishable", ())}),
             "not_assessable": sorted({n for r in eff + nul for n in r["not_assessable"]}),
         }
         a, b = out[v]["top1_rate_assessable"], out[v]["all_channel_top1_rate_same_cases"]
@@ -136,6 +163,10 @@ def main() -> None:
     ap.add_argument("--effects", nargs="*", default=DEFAULT_EFFECTS)
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--nulls", type=int, default=4)
+    ap.add_argument("--null-seeds", type=int, nargs="*", default=None,
+                    help="null data set seeds (instead of 100 … 100 + --nulls − 1)")
+    ap.add_argument("--data-only", action="store_true",
+                    help="write the data sets (with --out) and stop: no diagnosis")
     ap.add_argument("--level", type=float, default=1.0)
     ap.add_argument("--speeds", type=float, nargs="+", default=[0.1, 0.2, 0.3, 0.4, 0.5])
     ap.add_argument("--steps", type=int, default=9)
@@ -159,7 +190,9 @@ def main() -> None:
     root = args.out or Path(tmp.name)
     rows = []
     cases = [(e, s) for e in args.effects for s in args.seeds]
-    cases += [(None, 100 + k) for k in range(args.nulls)]
+    null_seeds = (args.null_seeds if args.null_seeds is not None
+                  else [100 + k for k in range(args.nulls)])
+    cases += [(None, s) for s in null_seeds]
     for effect, seed in cases:
         tag = f"{effect.split(':')[0] if effect else 'null'}_s{seed}"
         clean, noisy = root / f"{tag}_clean", root / f"{tag}_n{args.level:g}"
@@ -174,6 +207,8 @@ def main() -> None:
             if groups and not (args.reuse and (data / "meta.yaml").is_file()):
                 drop_channels(noisy, data, groups, stance="keep" if labels else "drop",
                               overwrite=True)
+            if args.data_only:
+                continue
             row = run_case(data, effect, root / f"{tag}_{variant}_diag", seed, args.workers)
             row.update(effect=effect or "none", seed=seed, variant=variant)
             rows.append(row)
@@ -183,19 +218,25 @@ def main() -> None:
                   f"added {row['added']:18s} not assessable "
                   f"{','.join(row['not_assessable']) or '-'}  [{row['diagnose_s']:.0f} s]",
                   flush=True)
+    if args.data_only:
+        tmp.cleanup()
+        return
     summary = summarise(rows)
     summary["wall_s"] = time.perf_counter() - t_start
     print()
     print("| variant | top-1 (all cases) | assessable cases | top-1 on assessable | all-channel "
-          "top-1, same cases | share | coef within 15 % | null false alarms | not assessable |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "top-1, same cases | share | coef within 15 % | null false alarms | wrong term added "
+          "(presented as the answer) | not assessable | indistinguishable |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for v in [v for v in VARIANTS if v in summary]:
         s = summary[v]
         print(f"| {v} | {s['top1_rate']:.0%} of {s['cases']} | {s['assessable_cases']} | "
               f"{s['top1_rate_assessable']:.0%} | {s['all_channel_top1_rate_same_cases']:.0%} | "
               f"{s['share_of_all_channel_top1']:.0%} | {s['coef_within_15pct_rate']:.0%} | "
               f"{s['null_false_alarms']} of {s['null_cases']} | "
-              f"{', '.join(s['not_assessable']) or '-'} |")
+              f"{s['wrong_term_added']} ({s['wrong_answer']}) | "
+              f"{', '.join(s['not_assessable']) or '-'} | "
+              f"{', '.join(s['indistinguishable']) or '-'} |")
     print(f"target_met: {summary.get('target_met')}")
     print(f"wall_s: {summary['wall_s']:.0f}")
     if args.json:

@@ -12,7 +12,8 @@ import pytest
 
 from granular_mpc.columns import GRF_COLUMNS, INTRUSION_COLUMNS, STANCE
 from granular_mpc.exceptions import ConfigError, DataFormatError
-from granular_mpc.validation.channel_coverage import channel_coverage
+from granular_mpc.output import json_safe
+from granular_mpc.validation.channel_coverage import Coverage, channel_coverage
 from granular_mpc.validation.dataformat import load_dataset
 from granular_mpc.validation.dataformat.channels import ChannelGroup, ChannelSet
 from granular_mpc.validation.dataformat.drop import drop_channels
@@ -116,8 +117,9 @@ def _fake(channels, groups):
     J = ["a", "b"]
     cs = ChannelSet.of(groups)
     ds = SimpleNamespace(joint_names=J, channels=cs, has=cs.has, stance_source="measured")
-    problem = SimpleNamespace(channels=tuple(channels))
     W, B = 6, 4
+    windows = [SimpleNamespace(trial="t1", side=("left", "right")[i % 2]) for i in range(W)]
+    problem = SimpleNamespace(channels=tuple(channels), windows=windows)
     S_big = np.zeros((W, len(channels), B))
     S_big[:, 0, 1] = 3.0                      # per unit parameter
     S_small = np.full((W, len(channels), B), 0.01)
@@ -148,6 +150,45 @@ def test_assessable_rule_uses_the_sensitivity_on_measured_channels():
         assert size["terrain_slope"] == pytest.approx(0.01 / 2.0)
         assert size["terrain_slope"] < MIN_ASSESSABLE_SIZE <= size["cohesion"]
     assert channel_coverage(ds).missing == ()
+
+
+def test_collinear_candidates_are_indistinguishable_with_the_measured_channels():
+    """cohesion's and elastic_unloading's columns move q_a's phase bin 1 in the same
+    proportion (collinear signatures, 1.5 σ each): with missing groups neither can be
+    assessed and each is reported indistinguishable from the other; joint_friction moves
+    q_b (orthogonal to them): assessable. With every group measured nothing is taken out
+    and nothing is reported indistinguishable."""
+    cands = build_candidates(["cohesion", "elastic_unloading", "joint_friction"])
+    ch = ["q_a", "q_b"]
+    sig = {"q_a": 2.0, "q_b": 2.0}
+    step = {c.key: c.step for cols in cands.columns.values() for c in cols}
+    for groups, expect_out in [(["joint_angles", "joint_torques", "trunk_orientation",
+                                 "trunk_angular_velocity"], {"cohesion", "elastic_unloading"}),
+                               ([g.value for g in ChannelGroup], set())]:
+        problem, ds, S_big, _ = _fake(ch, groups)
+        S_orth = np.zeros_like(S_big)
+        S_orth[:, 1, 2] = 3.0
+        sens = {k: (S_orth if k.startswith("joint_friction") else S_big) / step[k]
+                for k in step}
+        res = SimpleNamespace(sens=sens, sigma=sig,
+                              geometry=SimpleNamespace(sens={}, sigma=1e-3))
+        kept, cov = assess_candidates(problem, ds, cands, res)
+        assert set(cov.not_assessable) == expect_out
+        assert set(kept.infos) == {"cohesion", "elastic_unloading", "joint_friction"} - expect_out
+        by = {e.name: e for e in cov.effects}
+        assert by["cohesion"].size == pytest.approx(1.5)
+        assert by["cohesion"].identifiable_size == pytest.approx(0.0, abs=1e-9)
+        assert by["joint_friction"].identifiable_size == pytest.approx(1.5)
+        if expect_out:
+            assert set(cov.indistinguishable) == {("cohesion", "elastic_unloading"),
+                                                  ("elastic_unloading", "cohesion")}
+            assert "indistinguishable with the measured channels from elastic_unloading" \
+                in by["cohesion"].reason
+            assert any("indistinguishable with the measured channels: cohesion, "
+                       "elastic_unloading" in line for line in cov.markdown())
+        else:
+            assert cov.indistinguishable == ()
+        assert Coverage.from_dict(json.loads(json.dumps(json_safe(cov.to_dict())))) == cov
 
 
 def test_detectable_size_is_the_largest_stance_mean_cell_in_sigma():

@@ -29,6 +29,11 @@ class EffectCoverage:
         size: detectable size at its nominal magnitude [σ] (NaN: not computed).
         channel: the measured channel where ``size`` is reached (``""``: none).
         reason: in words.
+        identifiable_size: the part of ``size`` the nuisance columns do not explain, and
+            no other candidate either (the smallest over them) [σ] (NaN: not computed;
+            :mod:`.diagnosis.identifiability`).
+        indistinguishable_from: the candidates that explain its signature on the measured
+            channels within less than the threshold.
     """
 
     name: str
@@ -37,6 +42,8 @@ class EffectCoverage:
     size: float
     channel: str
     reason: str
+    identifiable_size: float = float("nan")
+    indistinguishable_from: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -81,6 +88,12 @@ class Coverage:
         return tuple(e.name for e in self.effects if e.assessable)
 
     @property
+    def indistinguishable(self) -> tuple[tuple[str, str], ...]:
+        """(candidate that cannot be assessed, the candidate that explains its signature
+        on the measured channels): an addition of the second one is ambiguous."""
+        return tuple((e.name, b) for e in self.effects for b in e.indistinguishable_from)
+
+    @property
     def warnings(self) -> tuple[str, ...]:
         """One line per candidate that cannot be assessed."""
         miss = ", ".join(self.missing)
@@ -105,9 +118,7 @@ class Coverage:
                    tuple(d["scored_channels"]), tuple(d["not_scored_channels"]),
                    str(d["trunk_state"]), str(d["stance_source"]), str(d.get("touchdowns", "")),
                    str(d.get("calibration", "")),
-                   tuple(EffectCoverage(**{**e, "size": float("nan") if e["size"] is None
-                                           else float(e["size"])})
-                         for e in d.get("effects", ())),
+                   tuple(_effect_from_dict(e) for e in d.get("effects", ())),
                    float(d.get("threshold_sigma", MIN_ASSESSABLE_SIZE)))
 
     def markdown(self) -> list[str]:
@@ -127,17 +138,35 @@ class Coverage:
         if self.effects:
             bad = [e for e in self.effects if not e.assessable]
             lines += ["", f"Candidates that **cannot be assessed** without "
-                          f"{', '.join(self.missing) or '-'} (rule: at its nominal magnitude "
-                          f"it moves no measured channel × phase mean by ≥ {self.threshold:g} σ, "
-                          f"or it reads an unmeasured column): "
+                          f"{', '.join(self.missing) or '-'} (rules: at its nominal magnitude "
+                          f"it moves no measured channel × phase mean by ≥ {self.threshold:g} σ; "
+                          f"or less than {self.threshold:g} σ of that signature (per trial "
+                          "and side) is left once the calibration's free parameters, or "
+                          "they and any one other candidate, are fitted; or it reads an "
+                          "unmeasured column): "
                       + (", ".join(f"`{e.name}`" for e in bad) or "none"), ""]
-            lines += ["| candidate | kind | size at nominal magnitude | on | assessable |",
-                      "|---|---|---|---|---|"]
+            for a, b in self.indistinguishable:
+                lines.append(f"* **indistinguishable with the measured channels: {a}, {b}** "
+                             f"— an addition of {b} may be {a}'s doing (ambiguous)")
+            lines += ["", "| candidate | kind | size at nominal magnitude | on | identifiable "
+                          "part | assessable |", "|---|---|---|---|---|---|"]
             for e in self.effects:
                 size = "–" if not math.isfinite(e.size) else f"{e.size:.2f} σ"
-                lines.append(f"| {e.name} | {e.kind} | {size} | {e.channel or '–'} | "
+                ident = ("–" if not math.isfinite(e.identifiable_size)
+                         else f"{e.identifiable_size:.2f} σ")
+                lines.append(f"| {e.name} | {e.kind} | {size} | {e.channel or '–'} | {ident} | "
                              f"{'yes' if e.assessable else 'no: ' + e.reason} |")
         return lines + [""]
+
+
+def _effect_from_dict(e: Mapping) -> EffectCoverage:
+    """One :class:`EffectCoverage` from its JSON form (None → NaN, lists → tuples)."""
+    def num(v):
+        return float("nan") if v is None else float(v)
+    return EffectCoverage(str(e["name"]), str(e["kind"]), bool(e["assessable"]),
+                          num(e["size"]), str(e["channel"]), str(e["reason"]),
+                          num(e.get("identifiable_size")),
+                          tuple(e.get("indistinguishable_from", ())))
 
 
 def trunk_state_source(ds: Dataset) -> str:

@@ -28,8 +28,19 @@ candidate columns' own sensitivities on the channels that are there, not from a 
   its nominal magnitude"; ``bench/channels.py`` keeps the sizes per case (on joint data
   + IMU, quick run: cohesion 5–18 σ, elastic unloading 1.5–14 σ, joint friction 4–6 σ,
   inertial drag 0.9–5.5 σ, depth hardening 0.4–1.7 σ — it falls on either side from one
-  data set to the next —, terrain slope 0.3–0.5 σ). With every group measured nothing is taken out (an effect that
-  is small everywhere is a matter for the ranking, not of missing sensors).
+  data set to the next —, terrain slope 0.3–0.5 σ);
+* size alone is not enough: a candidate whose signature another candidate reproduces
+  cannot be told from it. Its **identifiable part** (:mod:`.identifiability`) is what of
+  its signature on the regression's own rows (per trial and side, channel and phase bin,
+  in σ_c) the least-squares fit of the calibration's free parameters, and of them plus any
+  one other assessable candidate, leaves; with missing groups a candidate whose
+  identifiable part is below the same threshold is **not assessable** either — "the
+  calibration explains it", or "indistinguishable with the measured channels from B" —,
+  and an addition of B is reported as *ambiguous* (the verdict names both).
+
+With every group measured nothing is taken out (an effect that is small everywhere is a
+matter for the ranking, not of missing sensors; collinear fitted contributions are the
+screening's indistinguishable pairs); the sizes and identifiable parts are reported.
 
 Without foot force or intrusion the equation-error calibration of ζ (measured vertical
 force against the terrain law at the measured depth) cannot run: the terrain file's values
@@ -56,7 +67,9 @@ from ..prepare import StanceWindow, channel_names
 from ..replay.measurement import check_sensor_specs
 from ..replay.model import build_replay_model
 from .calibration import CalibrationStage, nuisance_columns
-from .candidates import CandidateSet
+from .candidates import CandidateSet, Column
+from .cubes import group_keys
+from .identifiability import Signature, identifiability
 from .problem import Problem
 from .thresholds import MIN_EFFECT_SIZE
 
@@ -148,11 +161,48 @@ def detectable_size(S: np.ndarray, step: float, channels: Sequence[str],
     return best, where
 
 
+def group_signature(S: np.ndarray, step: float, channels: Sequence[str],
+                    sigma: Mapping[str, float], groups: np.ndarray) -> np.ndarray:
+    """The regression's systematic rows of a (W, C, B) sensitivity cube at ``step``: per
+    trial-and-side group (``groups``, one key per window), channel and phase bin, the mean
+    over the group's stances in units of the channel's σ, flattened (G·C·B; NaN: empty)."""
+    S = np.asarray(S, dtype=float) * step
+    sd = np.array([float(sigma.get(ch, 1.0)) for ch in channels])[:, None]
+    with np.errstate(invalid="ignore"):
+        out = [np.nanmean(S[groups == g], axis=0) / sd for g in np.unique(groups)]
+    return np.array(out).ravel()
+
+
+def column_signatures(cols, res, channels: Sequence[str], groups: np.ndarray,
+                      touchdown: bool) -> Signature:
+    """The :class:`~.identifiability.Signature` of ``cols`` (candidate or nuisance
+    columns) on the regression's systematic rows (:func:`group_signature`, weights
+    √n_group as in :mod:`.design`); touchdown rows only with a measured trunk position."""
+    cells = [group_signature(res.sens[c.key], c.step, channels, res.sigma, groups)
+             for c in cols]
+    keys, counts = np.unique(groups, return_counts=True)
+    per_group = len(channels) * (cells[0].size // max(len(channels) * len(keys), 1)) \
+        if cells else 0
+    weights = np.repeat(np.sqrt(counts.astype(float)), per_group)
+    n_rows = 0
+    if touchdown:
+        n_rows = max((np.asarray(g).size for g in res.geometry.sens.values()), default=0)
+    rows = []
+    for c in cols:
+        g = res.geometry.sens.get(c.key) if touchdown else None
+        rows.append(np.zeros(n_rows) if g is None
+                    else np.asarray(g, float).ravel() * c.step / res.geometry.sigma)
+    return Signature(np.array(cells).T.reshape(weights.size, len(cols)),
+                     np.array(rows).T.reshape(n_rows, len(cols)), weights)
+
+
 def assess_candidates(problem: Problem, ds: Dataset, candidates: CandidateSet, res,
                       unreadable: Sequence[EffectCoverage] = (),
-                      calibration: str = "") -> tuple[CandidateSet, Coverage]:
-    """Every candidate's detectable size on the measured channels; with missing groups,
-    those below :data:`MIN_ASSESSABLE_SIZE` are taken out (module docstring).
+                      calibration: str = "", nuisance: Sequence[Column] = ()
+                      ) -> tuple[CandidateSet, Coverage]:
+    """Every candidate's detectable size and identifiable part on the measured channels;
+    with missing groups, those below :data:`MIN_ASSESSABLE_SIZE` or indistinguishable from
+    another candidate are taken out (module docstring, :mod:`.identifiability`).
 
     Args:
         problem: the problem (its channels: the measured ones).
@@ -161,16 +211,16 @@ def assess_candidates(problem: Problem, ds: Dataset, candidates: CandidateSet, r
         res: the :class:`~.residuals.Residuals` (sensitivities, σ, geometry rows).
         unreadable: from :func:`drop_unreadable_sensor_candidates`.
         calibration: how ζ was set, in words.
+        nuisance: the calibration's columns, fitted on every data set (their sensitivities
+            in ``res.sens``).
 
     Returns:
         The assessable candidates and the :class:`Coverage`.
     """
     missing = bool(ds.channels.missing)
     touchdown = ds.has(ChannelGroup.TRUNK_POSITION)
-    effects = list(unreadable)
-    drop = []
+    sizes: dict[str, tuple[float, str]] = {}
     for n, cols in candidates.columns.items():
-        info = candidates.infos[n]
         size, where = 0.0, ""
         for col in cols:
             S = res.sens.get(col.key)
@@ -183,10 +233,38 @@ def assess_candidates(problem: Problem, ds: Dataset, candidates: CandidateSet, r
                 v = float(np.sqrt(np.mean((np.asarray(g) * col.step) ** 2))) / res.geometry.sigma
                 if v > size:
                     size, where = v, TOUCHDOWN_CHANNEL
-        ok = not (missing and size < MIN_ASSESSABLE_SIZE)
-        reason = ("" if ok else f"at its nominal magnitude it moves the measured channels "
-                  f"by at most {size:.2f} σ ({where or 'none'}) < {MIN_ASSESSABLE_SIZE:g} σ")
-        effects.append(EffectCoverage(n, info.kind, ok, size, where, reason))
+        sizes[n] = (size, where)
+    big = [n for n, (v, _) in sizes.items() if v >= MIN_ASSESSABLE_SIZE]
+    groups = np.asarray(group_keys(problem.windows))
+    sigs = {n: column_signatures(cols, res, problem.channels, groups, touchdown)
+            for n, cols in candidates.columns.items()
+            if cols and all(c.key in res.sens for c in cols)}
+    nuis = [c for c in nuisance if c.key in res.sens]
+    ident = identifiability(sigs, column_signatures(nuis, res, problem.channels, groups,
+                                                    touchdown)
+                            if nuis else None, among=big, threshold=MIN_ASSESSABLE_SIZE)
+    effects = list(unreadable)
+    drop = []
+    for n in candidates.columns:
+        info = candidates.infos[n]
+        size, where = sizes[n]
+        idf = ident.get(n)
+        part = (min([idf.size, *idf.given.values()]) if idf is not None else float("nan"))
+        twins = idf.absorbed_by if idf is not None and size >= MIN_ASSESSABLE_SIZE else ()
+        reason = ""
+        if size < MIN_ASSESSABLE_SIZE:
+            reason = (f"at its nominal magnitude it moves the measured channels by at most "
+                      f"{size:.2f} σ ({where or 'none'}) < {MIN_ASSESSABLE_SIZE:g} σ")
+        elif twins:
+            reason = (f"indistinguishable with the measured channels from {', '.join(twins)}: "
+                      f"{'; '.join(f'{b} explains all but {idf.given[b]:.2f} σ' for b in twins)}"
+                      f" of its signature (< {MIN_ASSESSABLE_SIZE:g} σ)")
+        elif idf is not None and idf.size < MIN_ASSESSABLE_SIZE:
+            reason = (f"the calibration's free parameters explain all but {idf.size:.2f} σ of "
+                      f"its signature (< {MIN_ASSESSABLE_SIZE:g} σ)")
+        ok = not (missing and reason)
+        effects.append(EffectCoverage(n, info.kind, ok, size, where, "" if ok else reason,
+                                      part, twins if missing else ()))
         if not ok:
             drop.append(n)
     cov = replace(channel_coverage(ds), calibration=calibration, effects=tuple(effects))
@@ -221,4 +299,5 @@ __all__ = ["Coverage", "EffectCoverage", "MIN_ASSESSABLE_SIZE", "COVERAGE_FILE",
            "channel_coverage", "measured_problem", "can_calibrate", "fixed_calibration",
            "KINEMATIC_SURFACE_MAX_DEPTH_M",
            "drop_unreadable_sensor_candidates", "detectable_size", "assess_candidates",
+           "group_signature", "column_signatures",
            "calibration_text", "write_coverage", "coverage_section", "trunk_state_source"]

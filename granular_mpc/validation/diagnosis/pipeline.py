@@ -102,7 +102,7 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
         res = compute_residuals(problem, cands, cal, pool)
         cands, warns = drop_dead_candidates(cands, res.sens, problem.channels)
         cands, coverage = assess_candidates(problem, ds, cands, res, unreadable,
-                                            calibration_text(ds))
+                                            calibration_text(ds), nuisance=cal.nuisance)
         warns = tuple(warns) + coverage.warnings
         timing["replays"] = _time.perf_counter() - t0
         t0 = _time.perf_counter()
@@ -123,7 +123,7 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     timing["localize"] = _time.perf_counter() - t0
     theta = dict(ref.theta) if ref.selected else dict(loc.theta_linear)
     vin = VerdictInputs(ref.selected, ref.ranking, ref.refined_heldout, loc.after, loc.before,
-                        ref.acceptance, scr.indistinguishable)
+                        ref.acceptance, scr.indistinguishable, coverage.indistinguishable)
     verdict = decide(vin)
     best = best_candidate_statement(vin)
     verdict, proposal = pointed_proposal(verdict, best, proposal, out, str(data_dir))

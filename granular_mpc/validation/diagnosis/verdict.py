@@ -35,6 +35,9 @@ class VerdictInputs:
         before: localisation of the calibrated model (None: not checked).
         acceptance: the acceptance decisions of the refined contenders.
         indistinguishable: candidate pairs the data cannot tell apart.
+        channel_twins: (candidate that cannot be assessed, candidate that explains its
+            signature) on the measured channels (:mod:`.identifiability`): an addition of
+            the second is ambiguous.
     """
 
     selected: tuple[str, ...]
@@ -44,6 +47,11 @@ class VerdictInputs:
     before: Localization | None = None
     acceptance: tuple[Acceptance, ...] = ()
     indistinguishable: tuple[IndistinguishablePair, ...] = ()
+    channel_twins: tuple[tuple[str, str], ...] = ()
+
+    def twins_of(self, name: str) -> tuple[str, ...]:
+        """The candidates the measured channels cannot tell from an addition of ``name``."""
+        return tuple(sorted({a for a, b in self.channel_twins if b == name}))
 
     @property
     def remaining(self) -> tuple:
@@ -84,6 +92,11 @@ def missing_effect(v: VerdictInputs) -> Verdict | None:
             + "; ".join(effect_sentence(e) for e in v.ranking if e.effect in v.selected)
             + f"; refined fit: held-out error {error_change(red)} (stance-averaged), "
               f"{error_change(red_st)} (stance by stance)")
+    for name in v.selected:
+        if v.twins_of(name):
+            text += (f". AMBIGUOUS: {name} may be {' or '.join(v.twins_of(name))}'s doing — "
+                     f"indistinguishable with the measured channels: {name}, "
+                     f"{', '.join(v.twins_of(name))}")
     left = v.after.n_major_cells
     if left:
         text += (f". After adding {', '.join(v.selected)}, {left} channel × phase "
@@ -153,6 +166,10 @@ def best_candidate_statement(v: VerdictInputs) -> str:
                        "remain")
         if twins:
             why.append(f"the data cannot tell it from {', '.join(twins)}")
+        if v.twins_of(name):
+            why.append("ambiguous: the measured channels cannot tell it from "
+                       f"{', '.join(v.twins_of(name))}, which cannot be assessed without "
+                       "the missing channels")
         acc = next((a for a in v.acceptance if a.effect == name and a.accepted), None)
         if acc is not None and acc.notes:
             why.append("; ".join(acc.notes))
