@@ -9,6 +9,9 @@ Figures:
 * diagnose_s — ``granular-mpc diagnose`` (calibration, ≈ 12 replays of all stances, ranking
   with 200 bootstrap refits, replay refinement of the added effect, localisation, report).
 * n_stances — complete stance phases in the data set; replays — stance replays run.
+* diagnose_<stage>_s — ``diagnosis.timing_s`` of the diagnose run, per stage (prepare,
+  calibrate, replays, design, rank, refine, localize; ``total`` excludes the figures and
+  the report, which ``diagnose_s`` includes).
 
 Without ``--data`` a data set is synthesised first (5 speeds × 10 stances, hidden effect
 ``cohesion``, realistic noise; not timed) in a temporary folder. Budget (issue 5): both
@@ -57,6 +60,9 @@ def main() -> None:
                "n_stances": rep.report["n_stances"],
                "replays": diag.design.replays}
     units = {"validate_s": "s", "diagnose_s": "s", "n_stances": "", "replays": ""}
+    for stage, sec in diag.timing_s.items():
+        figures[f"diagnose_{stage}_s"] = float(sec)
+        units[f"diagnose_{stage}_s"] = "s"
     for k, v in figures.items():
         print(f"{k}: {v:.3g} {units[k]}".rstrip() if isinstance(v, float) else f"{k}: {v}")
     if args.json:

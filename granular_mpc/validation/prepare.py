@@ -343,7 +343,7 @@ def _foot_kinematics(biped: Biped, data: pin.Data, st: "TrialStates", side: str,
     in W, its heading-frame components (v_h, v_l, v_z) and the unit heading (hx, hy)."""
     n = b - a
     pitch = np.zeros(n)
-    vc = np.zeros((n, 3))
+    lin, ang, arm = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
     head = np.zeros((n, 2))
     fid = biped.foot_frame[side]
     for k in range(n):
@@ -352,11 +352,13 @@ def _foot_kinematics(biped: Biped, data: pin.Data, st: "TrialStates", side: str,
         oMf = pin.updateFramePlacement(biped.model, data, fid)
         pts = patch_points(biped, oMf)
         vel = pin.getFrameVelocity(biped.model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-        vc[k] = vel.linear + np.cross(vel.angular, pts.mean(axis=0) - oMf.translation)
+        lin[k], ang[k] = vel.linear, vel.angular
+        arm[k] = pts.mean(axis=0) - oMf.translation
         pitch[k] = foot_pitch(oMf)
         hx, hy = oMf.rotation[0, 0], oMf.rotation[1, 0]
         hn = math.hypot(hx, hy) or 1.0
         head[k] = hx / hn, hy / hn
+    vc = lin + np.cross(ang, arm)                # rows: the same products as one by one
     v_h = vc[:, 0] * head[:, 0] + vc[:, 1] * head[:, 1]
     v_l = -vc[:, 0] * head[:, 1] + vc[:, 1] * head[:, 0]
     return {"pitch": pitch, "vc_x": vc[:, 0], "vc_y": vc[:, 1], "vc_z": vc[:, 2],

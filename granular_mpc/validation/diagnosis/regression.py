@@ -12,12 +12,17 @@ from scipy.optimize import lsq_linear
 from sklearn.model_selection import GroupKFold
 
 from ..prepare import StanceWindow
+from .bounded_lsq import ReducedSystem
 from .design import Design, GeometryRows, build_design
 from .thresholds import MAX_DELTA_AICC
 
 
 def fit_bounded(X: np.ndarray, y: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> np.ndarray:
-    """β minimising ‖y − Xβ‖² within lb ≤ β ≤ ub (BVLS on column-normalised X)."""
+    """β minimising ‖y − Xβ‖² within lb ≤ β ≤ ub (BVLS on column-normalised X).
+
+    The reference solver (``scipy.optimize.lsq_linear``) on the full rows; the screening's
+    many fits on the same rows use :class:`~.bounded_lsq.ReducedSystem` instead
+    (:meth:`Regression.fit`, :meth:`Regression.cv`; the same solution)."""
     if X.shape[1] == 0:
         return np.zeros(0)
     scale = np.sqrt((X ** 2).sum(axis=0))
@@ -94,6 +99,39 @@ class Regression:
                     ste = np.array([g in test for g in self.stance.groups])
                     self.stance_splits.append(np.flatnonzero(ste))
         self.seed = seed
+        # every column's index in one (n, P) matrix, and the reduced systems of the row
+        # sets fitted repeatedly (all rows, each CV fold, the current bootstrap resample)
+        self.column_index = {k: i for i, k in enumerate(self.cols)}
+        self._all = (np.column_stack(list(self.cols.values())) if self.cols
+                     else np.zeros((self.y.size, 0)))
+        self._reduced: dict = {}
+        self._resample: tuple = (None, None)
+
+    def reduced(self, rows=None, *, fold: int | None = None) -> ReducedSystem:
+        """The QR-reduced system (:class:`~.bounded_lsq.ReducedSystem`) of every column on
+        ``rows`` (default: all fitted rows; ``fold``: the training rows of that CV fold),
+        cached for all rows, the folds and the last resample (the same ``rows`` object):
+        the bootstrap's forward selection and refits, and every candidate's CV, share one
+        factorisation per set of rows."""
+        if fold is not None:
+            if fold not in self._reduced:
+                tr = self.splits[fold][0]
+                self._reduced[fold] = ReducedSystem.of(self._all[tr], self.y[tr])
+            return self._reduced[fold]
+        if rows is None:
+            if "all" not in self._reduced:
+                self._reduced["all"] = ReducedSystem.of(self._all, self.y)
+            return self._reduced["all"]
+        if self._resample[0] is not rows:
+            self._resample = (rows, ReducedSystem.of(self._all[rows], self.y[rows]))
+        return self._resample[1]
+
+    def _bounded(self, keys: Sequence[str], system: ReducedSystem) -> tuple[np.ndarray, float]:
+        """(β, RSS) of the bounded fit of ``keys`` on a reduced system."""
+        cols = np.array([self.column_index[k] for k in keys], dtype=int)
+        lb = np.array([self.bounds[k][0] for k in keys], dtype=float)
+        ub = np.array([self.bounds[k][1] for k in keys], dtype=float)
+        return system.fit(cols, lb, ub)
 
     def matrix(self, keys: Sequence[str], rows=None, cols=None):
         """(X, lower, upper) of the columns ``keys`` on ``rows`` (default: all) of ``cols``
@@ -108,22 +146,30 @@ class Regression:
         return (X if rows is None else X[rows]), lb, ub
 
     def fit(self, keys: Sequence[str], rows=None) -> tuple[np.ndarray, float]:
-        """(β, RSS) of the bounded fit of ``keys`` on ``rows``."""
-        X, lb, ub = self.matrix(keys, rows)
-        y = self.y if rows is None else self.y[rows]
-        beta = fit_bounded(X, y, lb, ub)
-        r = y - X @ beta if len(keys) else y
-        return beta, float(r @ r)
+        """(β, RSS) of the bounded fit of ``keys`` on ``rows``.
+
+        On all rows (the estimates that start the replay refinement, whose replays turn
+        even last-bit differences of a start into visible ones) the reference solver
+        :func:`fit_bounded` on the full rows; on a resample of rows (the bootstrap) the
+        same fit on the resample's reduced system (:meth:`reduced`)."""
+        if rows is None or not len(keys):
+            X, lb, ub = self.matrix(keys, rows)
+            y = self.y if rows is None else self.y[rows]
+            beta = fit_bounded(X, y, lb, ub)
+            r = y - X @ beta if len(keys) else y
+            return beta, float(r @ r)
+        return self._bounded(keys, self.reduced(rows))
 
     def cv(self, keys: Sequence[str]) -> CVScore:
         """Held-out SSE of the fitted rows (total and per fold) and, with a stance design,
-        of the stance rows of the held-out trials under the same fit."""
+        of the stance rows of the held-out trials under the same fit (each fold's fit on
+        its training rows' reduced system, :meth:`reduced`)."""
         per, per_st = [], []
-        X, lb, ub = self.matrix(keys)
+        X, _, _ = self.matrix(keys)
         if self.stance is not None:
             Xs, _, _ = self.matrix(keys, cols=self.stance.cols)
         for k, (tr, te) in enumerate(self.splits):
-            beta = fit_bounded(X[tr], self.y[tr], lb, ub)
+            beta = self._bounded(keys, self.reduced(fold=k))[0] if len(keys) else np.zeros(0)
             r = self.y[te] - X[te] @ beta if len(keys) else self.y[te]
             per.append(float(r @ r))
             if self.stance is not None:

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .bounded_lsq import one_blas_thread
+
 #: thresholds tried (standardised coefficient, in units of the target's RMS)
 THRESHOLDS = np.geomspace(0.01, 1.0, 21)
 #: a sparser model is preferred while its CV error is within this factor of the best
@@ -25,9 +27,70 @@ N_STABILITY = 100
 MIN_FREQUENCY = 0.7
 
 
+@dataclass(frozen=True, eq=False)
+class Factored:
+    """One least-squares system y ≈ [N, X] β, QR-factored once: [N, X] = Q R, z = Qᵀ y.
+
+    For any subset S of the columns, ‖y − [N, X]_S β‖² = ‖z − R_S β‖² + ‖(I − QQᵀ) y‖²,
+    so the least squares on S is the small (≤ K + F rows) problem on R_S and z: the
+    refits of STLSQ and of every threshold on the same rows share one factorisation.
+
+    Attributes:
+        R: (min(n, K + F), K + F) triangular factor; z: Qᵀ y (its first rows).
+        n: rows of the system; K: nuisance columns (first in R); F: features.
+    """
+
+    R: np.ndarray
+    z: np.ndarray
+    n: int
+    K: int
+    F: int
+
+    @classmethod
+    def of(cls, X: np.ndarray, N: np.ndarray, y: np.ndarray) -> "Factored":
+        """Factor [N, X] (rows n) and project y: the triangular factor of [N, X, y]
+        holds R and z (Q is never formed)."""
+        p = N.shape[1] + X.shape[1]
+        with one_blas_thread():
+            Ra = np.linalg.qr(np.hstack([N, X, np.reshape(y, (-1, 1))]), mode="r")
+        return cls(Ra[:p, :p], Ra[:p, p], int(y.size), int(N.shape[1]), int(X.shape[1]))
+
+    def solve(self, cols: np.ndarray) -> np.ndarray:
+        """Minimum-norm least squares on the columns ``cols`` (indices into [N, X]), with
+        the singular-value cutoff ``np.linalg.lstsq(..., rcond=None)`` would use on the
+        full rows (ε · max(n, |cols|))."""
+        if not cols.size:
+            return np.zeros(0)
+        rcond = np.finfo(float).eps * max(self.n, cols.size)
+        return np.linalg.lstsq(self.R[:, cols], self.z, rcond=rcond)[0]
+
+
+def stlsq_factored(fac: Factored, threshold: float,
+                   iterations: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`stlsq` on a factored system (same iterations, same selection)."""
+    F, K = fac.F, fac.K
+    active = np.ones(F, bool)
+    xi = np.zeros(F)
+    nu = np.zeros(K)
+    for _ in range(iterations):
+        sol = fac.solve(np.concatenate([np.arange(K), K + np.flatnonzero(active)]))
+        nu = sol[:K]
+        xi = np.zeros(F)
+        xi[active] = sol[K:]
+        keep = active & (np.abs(xi) >= threshold)
+        if keep.sum() == active.sum():
+            break
+        active = keep
+        xi[~active] = 0.0
+    return xi, nu
+
+
 def stlsq(X: np.ndarray, N: np.ndarray, y: np.ndarray, threshold: float,
           iterations: int = 10) -> tuple[np.ndarray, np.ndarray]:
     """STLSQ of y on [N, X] with N unpenalised.
+
+    Each refit is the least squares on the kept columns (minimum norm where they are
+    dependent), solved on one QR factorisation of [N, X] (:class:`Factored`).
 
     Args:
         X: (n, F) standardised features; N: (n, K) nuisance columns; y: (n,) target.
@@ -36,22 +99,7 @@ def stlsq(X: np.ndarray, N: np.ndarray, y: np.ndarray, threshold: float,
     Returns:
         (ξ (F,), ν (K,)): feature and nuisance coefficients.
     """
-    F = X.shape[1]
-    active = np.ones(F, bool)
-    xi = np.zeros(F)
-    nu = np.zeros(N.shape[1])
-    for _ in range(iterations):
-        A = np.hstack([N, X[:, active]])
-        sol = np.linalg.lstsq(A, y, rcond=None)[0] if A.shape[1] else np.zeros(0)
-        nu = sol[:N.shape[1]]
-        xi = np.zeros(F)
-        xi[active] = sol[N.shape[1]:]
-        keep = active & (np.abs(xi) >= threshold)
-        if keep.sum() == active.sum():
-            break
-        active = keep
-        xi[~active] = 0.0
-    return xi, nu
+    return stlsq_factored(Factored.of(X, N, y), threshold, iterations)
 
 
 def folds(groups: np.ndarray, n_splits: int = 5) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -64,13 +112,21 @@ def folds(groups: np.ndarray, n_splits: int = 5) -> list[tuple[np.ndarray, np.nd
     return list(GroupKFold(n_splits=k).split(np.zeros(groups.size), groups=groups))
 
 
+def cv_sse_path(X: np.ndarray, N: np.ndarray, y: np.ndarray, splits,
+                thresholds) -> np.ndarray:
+    """:func:`cv_sse` at every threshold of ``thresholds`` (one factorisation per fold)."""
+    sse = np.zeros(len(thresholds))
+    for tr, te in splits:
+        fac = Factored.of(X[tr], N[tr], y[tr])
+        for i, t in enumerate(thresholds):
+            xi, nu = stlsq_factored(fac, t)
+            sse[i] += float(np.sum((y[te] - N[te] @ nu - X[te] @ xi) ** 2))
+    return sse
+
+
 def cv_sse(X: np.ndarray, N: np.ndarray, y: np.ndarray, splits, threshold: float) -> float:
     """Held-out SSE of STLSQ at ``threshold`` over ``splits`` (selection inside each fold)."""
-    sse = 0.0
-    for tr, te in splits:
-        xi, nu = stlsq(X[tr], N[tr], y[tr], threshold)
-        sse += float(np.sum((y[te] - N[te] @ nu - X[te] @ xi) ** 2))
-    return sse
+    return float(cv_sse_path(X, N, y, splits, [threshold])[0])
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,7 +198,7 @@ def sparse_fit(Phi: np.ndarray, N: np.ndarray, y: np.ndarray, groups: np.ndarray
     if not splits:
         splits = folds(units)
     base = _ols_cv(Nn, yy, splits)
-    errs = np.array([cv_sse(X, Nn, yy, splits, t) for t in THRESHOLDS])
+    errs = cv_sse_path(X, Nn, yy, splits, THRESHOLDS)
     ok = np.flatnonzero(errs <= CV_TOLERANCE * errs.min())
     thr = float(THRESHOLDS[ok.max()])
     rng = np.random.default_rng(seed)
@@ -179,5 +235,6 @@ def sparse_fit(Phi: np.ndarray, N: np.ndarray, y: np.ndarray, groups: np.ndarray
                      float(np.sqrt(np.mean(r_after ** 2))) * ys, se)
 
 
-__all__ = ["stlsq", "sparse_fit", "SparseFit", "folds", "cv_sse", "THRESHOLDS",
+__all__ = ["stlsq", "stlsq_factored", "Factored", "sparse_fit", "SparseFit", "folds",
+           "cv_sse", "cv_sse_path", "THRESHOLDS",
            "MIN_FREQUENCY", "N_STABILITY"]
