@@ -27,6 +27,14 @@ def xyzw_from_wxyz(quat_wxyz: np.ndarray) -> np.ndarray:
     return quat_wxyz[..., [1, 2, 3, 0]]
 
 
+def _components(quat) -> list:
+    """The four components of one quaternion as Python floats (the values ``float(c)``
+    gives per component; one ``tolist`` for a float64 array, the hot path)."""
+    if type(quat) is np.ndarray and quat.dtype == np.float64 and quat.ndim == 1:
+        return quat.tolist()
+    return [float(c) for c in quat]
+
+
 def wxyz_from_xyzw(quat_xyzw: np.ndarray) -> np.ndarray:
     """Reorder ``(x, y, z, w)`` → ``(w, x, y, z)``; works on one quaternion or rows."""
     quat_xyzw = np.asarray(quat_xyzw, dtype=float)
@@ -35,7 +43,7 @@ def wxyz_from_xyzw(quat_xyzw: np.ndarray) -> np.ndarray:
 
 def matrix_from_quat_xyzw(quat_xyzw) -> np.ndarray:
     """Rotation matrix (3, 3) of a unit quaternion ``(x, y, z, w)`` (not renormalised)."""
-    x, y, z, w = (float(c) for c in quat_xyzw)
+    x, y, z, w = _components(quat_xyzw)
     return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
                      [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
@@ -55,7 +63,7 @@ def normalized_matrix_from_quat_xyzw(quat_xyzw) -> np.ndarray:
 
 def roll_pitch_from_quat_xyzw(quat_xyzw) -> tuple[float, float]:
     """Roll and pitch [rad] (Z-Y-X Euler) of a unit quaternion ``(x, y, z, w)``."""
-    x, y, z, w = (float(c) for c in quat_xyzw)
+    x, y, z, w = _components(quat_xyzw)
     roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
     pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
     return roll, pitch
@@ -63,7 +71,7 @@ def roll_pitch_from_quat_xyzw(quat_xyzw) -> tuple[float, float]:
 
 def rpy_from_quat_xyzw(quat_xyzw) -> tuple[float, float, float]:
     """Roll, pitch, yaw [rad] (Z-Y-X Euler) of a unit quaternion ``(x, y, z, w)``."""
-    x, y, z, w = (float(c) for c in quat_xyzw)
+    x, y, z, w = _components(quat_xyzw)
     roll, pitch = roll_pitch_from_quat_xyzw((x, y, z, w))
     yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     return roll, pitch, yaw

@@ -167,14 +167,20 @@ class PlantRecorder:
                        foot_column(side, "contact"), foot_column(side, "depth"),
                        foot_column(side, "pitch"), foot_column(side, "cap_z"))
                       for side in SIDES]
-        # the stance foot's copies: (stance column, the foot's column) per side
-        self._stance_cols = {side: tuple((c, foot_column(side, c)) for pair in
-                                         zip(GRF_COLUMNS, INTRUSION_COLUMNS) for c in pair)
-                             for side in SIDES}
+        # the stance foot's copies (grf, intrusion per axis; zero for stance "none")
         self._none_cols = tuple((c, 0.0) for pair in zip(GRF_COLUMNS, INTRUSION_COLUMNS)
                                 for c in pair)
         self._com_cols = COM_POSITION + COM_VELOCITY
         self._free_flyer = biped.model.joints[1].shortname() == "JointModelFreeFlyer"
+        # every column of a row but ``extra``, in row order: time, joints, base, per foot
+        # (per axis grf, intrusion, contact point; contact, depth, pitch, cap_z), stance,
+        # the stance foot's grf and intrusion (per axis), the CoM
+        self._columns = ((TIME,) + self._joint_cols + tuple(BASE_COLUMNS)
+                         + tuple(c for axis_cols, *scalars in self._foot
+                                 for c in (*axis_cols, *scalars))
+                         + (STANCE,) + tuple(c for c, _ in self._none_cols)
+                         + tuple(self._com_cols))
+        self._none_values = tuple(v for _, v in self._none_cols)
 
     def row(self, d, *, stance: str | None = None, extra: Mapping[str, Any] | None = None) -> dict:
         """Row for plant data ``d``; ``stance`` defaults to the foot in contact (the one
@@ -186,48 +192,48 @@ class PlantRecorder:
         for ``contact``), filled from whole arrays at once (one ``tolist`` per block)."""
         b = self.biped
         q, v = d.q, d.v
-        row: dict[str, Any] = {TIME: d.t}
         jb = self._joint_buf
         jb[:, 0] = q[b.idx_q]
         jb[:, 1] = v[b.idx_v]
         jb[:, 2] = d.tau[b.idx_v]
-        row.update(zip(self._joint_cols, jb.ravel().tolist()))
+        # the values in the column order of self._head (time, joints, base, both feet,
+        # stance), collected in one list and zipped once
+        vals: list = [d.t]
+        vals += jb.ravel().tolist()
         # the CoM pass runs the forward kinematics: the free flyer's placement is the
         # trunk's rotation, the same numbers as matrix_from_quat_xyzw(q[3:7]) bit for bit
         pin.centerOfMass(b.model, self._pdata, q, v)
         R = (np.ascontiguousarray(self._pdata.oMi[1].rotation) if self._free_flyer
              else matrix_from_quat_xyzw(q[3:7]))
-        vw = R @ v[0:3]
         # position, quaternion (w, x, y, z), linear velocity (W), angular velocity (B)
-        ql, vl = q[0:7].tolist(), v[3:6].tolist()
-        base = (ql[0], ql[1], ql[2], ql[6], ql[3], ql[4], ql[5], *vw.tolist(), *vl)
-        row.update(zip(BASE_COLUMNS, base))
+        ql = q[0:7].tolist()
+        vals += (ql[0], ql[1], ql[2], ql[6], ql[3], ql[4], ql[5])
+        vals += (R @ v[0:3]).tolist()
+        vals += v[3:6].tolist()
         fz = []
-        for i, (axis_cols, c_contact, c_depth, c_pitch, c_cap) in enumerate(self._foot):
+        copies = []     # per foot: its (grf, intrusion) per axis, the stance columns' values
+        for i in range(2):
             f = d.foot_force(i).tolist()
             diag = d.foot_diag(i).tolist()
             pt = d.foot_point(i).tolist()
-            contact = d.foot_in_contact(i)
-            if contact:
-                vals = (f[0], diag[2], pt[0], f[1], diag[3], pt[1], f[2], diag[4], pt[2])
+            if d.foot_in_contact(i):
+                vals += (f[0], diag[2], pt[0], f[1], diag[3], pt[1], f[2], diag[4], pt[2],
+                         1, diag[0], diag[5], diag[1])
+                copies.append((f[0], diag[2], f[1], diag[3], f[2], diag[4]))
+                fz.append(f[2])
             else:
-                vals = (f[0], 0.0, pt[0], f[1], 0.0, pt[1], f[2], 0.0, pt[2])
-            row.update(zip(axis_cols, vals))
-            row[c_contact] = int(contact)
-            row[c_depth] = diag[0] if contact else 0.0
-            row[c_pitch] = diag[5]
-            row[c_cap] = diag[1]
-            fz.append(f[2] if contact else -np.inf)
+                vals += (f[0], 0.0, pt[0], f[1], 0.0, pt[1], f[2], 0.0, pt[2],
+                         0, 0.0, diag[5], diag[1])
+                copies.append((f[0], 0.0, f[1], 0.0, f[2], 0.0))
+                fz.append(-np.inf)
         if stance is None:
             stance = "none" if max(fz) == -np.inf else SIDES[int(np.argmax(fz))]
-        row[STANCE] = stance
-        if stance != "none":
-            for c, src in self._stance_cols[stance]:
-                row[c] = row[src]
-        else:
-            row.update(self._none_cols)
+        vals.append(stance)
+        vals += copies[SIDES.index(stance)] if stance != "none" else self._none_values
         c, vc = self._pdata.com[0], self._pdata.vcom[0]
-        row.update(zip(self._com_cols, (*c.tolist(), *vc.tolist())))
+        vals += c.tolist()
+        vals += vc.tolist()
+        row: dict[str, Any] = dict(zip(self._columns, vals))
         if extra:
             row.update(extra)
         return row

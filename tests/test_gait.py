@@ -47,6 +47,31 @@ def test_phases_and_timers_are_consistent():
                 assert not g.in_stance(t + max(ttd - 1e-3, 0.0), foot) or ttd < 1e-3
 
 
+def test_schedule_lookups_equal_the_cycle_formula_bit_for_bit():
+    """The cached constants give the numbers of the defining formulas exactly."""
+    cfg = GaitConfig(period=0.4, swing_fraction=0.43, weight_shift=0.3)
+    g = GaitSchedule(cfg)
+    period = cfg.period
+    swing = cfg.period * cfg.swing_fraction
+    stance = cfg.period - swing
+
+    def local(t, foot):
+        return (t - cfg.weight_shift - foot * 0.5 * period + 1e-9) % period - 1e-9
+
+    for t in np.arange(0.0, 3.0, 0.00071).tolist() + [0.3 - 1e-12, 0.3, 0.7, 0.9]:
+        standing = t < cfg.weight_shift - 1e-12
+        assert g.standing(t) == standing
+        want = tuple(True if standing else local(t, f) < stance - 1e-12 for f in (LEFT, RIGHT))
+        assert g.contacts(t) == want
+        for foot in (LEFT, RIGHT):
+            assert g.in_stance(t, foot) == want[foot]
+            phase = min(max((local(t, foot) - stance) / swing, 0.0), 1.0)
+            assert g.swing_phase(t, foot) == phase
+            ttd = 0.0 if want[foot] else period - local(t, foot)
+            assert g.time_to_touchdown(t, foot) == ttd
+            assert g.swing_timing(t, foot) == (ttd, phase)
+
+
 def test_speed_ramp_respects_acceleration_and_jerk_limits():
     cfg = CommandConfig(speed=0.5, max_acceleration=0.4, max_jerk=1.5, start_delay=0.5)
     ramp = CommandRamp(cfg, 0.002)

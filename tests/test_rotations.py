@@ -73,3 +73,16 @@ def test_rotvec_quaternion_matches_scipy():
 def test_skew_is_the_cross_product():
     r, v = np.array([0.3, -1.0, 2.0]), np.array([-0.5, 0.25, 4.0])
     assert np.allclose(rot.skew(r) @ v, np.cross(r, v))
+
+
+def test_scalar_functions_give_the_same_numbers_for_arrays_and_sequences(unit_quats_xyzw):
+    """The float64-array fast path (one ``tolist``) equals the per-component path."""
+    for q in unit_quats_xyzw[:50]:
+        as_tuple = tuple(float(c) for c in q)
+        assert np.array_equal(rot.matrix_from_quat_xyzw(q), rot.matrix_from_quat_xyzw(as_tuple))
+        assert rot.roll_pitch_from_quat_xyzw(q) == rot.roll_pitch_from_quat_xyzw(as_tuple)
+        assert rot.rpy_from_quat_xyzw(q) == rot.rpy_from_quat_xyzw(list(as_tuple))
+        # a float32 array takes the per-component path: its values, as Python floats
+        q32 = q.astype(np.float32)
+        assert np.array_equal(rot.matrix_from_quat_xyzw(q32),
+                              rot.matrix_from_quat_xyzw(q32.astype(float)))

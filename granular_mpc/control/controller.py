@@ -111,9 +111,19 @@ class ControllerData:
     records: list = field(default_factory=list)
     last_tau: np.ndarray | None = None
 
+    heading: np.ndarray | None = None       # rot_z(origin yaw), made once (read-only)
+
     @property
     def qp_failures(self) -> int:
         return self.mpc.failures + self.wbc.failures
+
+    def trunk_heading(self) -> np.ndarray:
+        """The trunk orientation the WBC holds, ``rot_z(origin[2])`` (3, 3), built at the
+        first call and shared (read-only) by every later tick's reference."""
+        if self.heading is None:
+            self.heading = rot_z(float(self.origin[2]))
+            self.heading.flags.writeable = False
+        return self.heading
 
 
 def _mean_point(points: np.ndarray) -> np.ndarray:
@@ -224,6 +234,11 @@ class WalkingController:
         return self.biped.mass, np.array([0.0, 0.0, -self.biped.gravity])
 
     @cached_property
+    def _slice_rows(self) -> np.ndarray:
+        """The sole slices' offsets as rows ``(0, y, 0)`` (n_slices, 3) [m, foot frame]."""
+        return np.array([[0.0, y, 0.0] for y in self.biped.slice_offsets])
+
+    @cached_property
     def _sole(self) -> tuple:
         """Sole arc radius [m], half-angle [rad], slice offsets [m] and both feet's frame
         ids (left, right): the constants of :meth:`foot_points`."""
@@ -241,7 +256,10 @@ class WalkingController:
         ≈ F_cap'(z)·δ, is what makes the foot sink, so the look-ahead δ sets both how fast
         the load can be taken and the largest overshoot (load only as fast as it sinks)."""
         step = self.config.mpc.max_sink_rate * 0.5 * self.config.mpc.dt
-        return self.ground.capacities([self._depth(feet[0]) + step, self._depth(feet[1]) + step])
+        # capacity per foot: the numbers of ground.capacities (np.interp evaluates each
+        # point alone) without its array round trip
+        cap = self.ground.capacity
+        return np.array([cap(self._depth(feet[0]) + step), cap(self._depth(feet[1]) + step)])
 
     def _stance_lever_points(self, fp: FootPoints, load: float) -> np.ndarray:
         """Where a stance foot's points will be under ``load``: deeper by the sinkage still
@@ -254,7 +272,7 @@ class WalkingController:
         return pts
 
     def _landing_points(self, xy: np.ndarray, yaw: float, load: float) -> np.ndarray:
-        off = np.array([[0.0, y, 0.0] for y in self.biped.slice_offsets]) @ rot_z(yaw).T
+        off = self._slice_rows @ rot_z(yaw).T
         z = self.ground.surface_height - self.ground.sinkage(load)
         return np.array([[xy[0] + o[0], xy[1] + o[1], z] for o in off])
 
@@ -265,7 +283,9 @@ class WalkingController:
         pd = d.wbc.pin
         pin.forwardKinematics(b.model, pd, q, v)
         pin.updateFramePlacements(b.model, pd)
-        pin.centerOfMass(b.model, pd, q, v)
+        # the CoM from the kinematics just computed (centerOfMass(q, v) would redo them:
+        # the same numbers bit for bit)
+        pin.centerOfMass(b.model, pd, pin.VELOCITY, False)
         com, vcom = pd.com[0].copy(), pd.vcom[0].copy()
         feet = self.foot_points(pd)
         stance = self.schedule.contacts(t)
@@ -296,11 +316,12 @@ class WalkingController:
         p_st = (_mean_point(feet[st_feet[0]].points)[:2] if len(st_feet) == 1
                 else 0.5 * (_mean_point(feet[0].points)[:2] + _mean_point(feet[1].points)[:2]))
         max_lat = self.ground.lateral_ratio * self.config.mpc.com_height
+        phases = [0.0, 0.0]             # swing phase of each swinging foot at t
         for i in range(2):
             if stance[i]:
                 continue
-            t_td = self.schedule.time_to_touchdown(t, i)
-            phase = self.schedule.swing_phase(t, i)
+            t_td, phase = self.schedule.swing_timing(t, i)
+            phases[i] = phase
             if d.target[i] is None or phase < 0.8:
                 if len(st_feet) == 1:
                     xi = predict_dcm(dcm, p_st, omega, t_td)
@@ -326,20 +347,21 @@ class WalkingController:
             d.next_mpc = next_tick(d.next_mpc, t, 1.0 / self.config.mpc.rate_hz, first)
         plan = d.plan
         dt = self.config.mpc.dt
-        k = int(min(max((t - plan.t) // dt, 0), self.mpc.N - 1))
+        N = self.mpc.N
+        k = int(min(max((t - plan.t) // dt, 0), N - 1))
         forces = self._force_reference(plan, t, stance)
         # CoM reference: the MPC prediction at t (linear in time inside the step)
-        s = min(max((t - plan.t) / dt, 0.0), float(self.mpc.N))
-        k0 = min(int(s), self.mpc.N - 1)
+        s = min(max((t - plan.t) / dt, 0.0), float(N))
+        k0 = min(int(s), N - 1)
         xs = plan.states[k0]
         com_ref = xs[3:6] + (s - k0 - 1.0) * dt * xs[9:12]
         com_vel_ref = xs[9:12]
-        f_tot = forces.sum(axis=(0, 1))
+        f_tot = np.add.reduce(forces, axis=(0, 1))     # forces.sum(axis=(0, 1))
         mass, g_vec = self._mass_gravity
         com_acc = f_tot / mass + g_vec
         sink_accel = np.zeros(2)
-        if self.ground.granular and self.mpc.N >= 3:
-            k1, k2 = min(k + 1, self.mpc.N - 1), min(k + 2, self.mpc.N - 1)
+        if self.ground.granular and N >= 3:
+            k1, k2 = min(k + 1, N - 1), min(k + 2, N - 1)
             sink_accel = (plan.sinkage[k2] - 2.0 * plan.sinkage[k1] + plan.sinkage[k]) / dt ** 2
         # swing references (foot-frame origin = sole point + R up)
         Rarc = b.config.foot.radius
@@ -349,10 +371,10 @@ class WalkingController:
                 continue
             goal = d.target[i] + np.array([0.0, 0.0, Rarc])
             sp[i], sv[i], sa[i] = cycloid(d.liftoff[i], goal, self.config.swing.height,
-                                          self.schedule.swing_phase(t, i),
+                                          phases[i],
                                           self.schedule.swing_duration)
         ref = WBCReference(com=com_ref, com_vel=com_vel_ref, com_acc=com_acc,
-                           R_trunk=rot_z(yaw_ref), omega=np.zeros(3), stance=stance,
+                           R_trunk=d.trunk_heading(), omega=np.zeros(3), stance=stance,
                            forces=forces, swing_pos=sp, swing_vel=sv, swing_acc=sa,
                            sink_accel=sink_accel,
                            force_cap=self._force_cap_now(feet) if self.ground.granular else None)
@@ -412,7 +434,7 @@ class WalkingController:
         forces[1, :, 2] = (1.0 - share_l) * b.weight / self.mpc.n_points
         z3 = np.zeros((2, 3))
         ref = WBCReference(com=com_ref, com_vel=com_vel, com_acc=np.zeros(3),
-                           R_trunk=rot_z(d.origin[2]), omega=np.zeros(3), stance=(True, True),
+                           R_trunk=d.trunk_heading(), omega=np.zeros(3), stance=(True, True),
                            forces=forces, swing_pos=z3, swing_vel=z3, swing_acc=z3,
                            sink_accel=np.zeros(2), force_weight=1e-3)
         t_wbc = time.perf_counter()
@@ -494,7 +516,7 @@ class WalkingController:
         if self.ground.granular:
             rate = cfg.max_sink_rate
             capacity = np.zeros((N, 2))
-            cap = self.ground.capacity
+            where, depths = [], []
             for i in range(2):
                 depth_now = self._depth(feet[i])
                 for k in range(N):
@@ -505,7 +527,12 @@ class WalkingController:
                     else:   # lands within the horizon, at the surface
                         since = (k + 1) * dt - touchdown[i]
                         depth = rate * max(since, 0.0)
-                    capacity[k, i] = cap(depth)
+                    where.append((k, i))
+                    depths.append(depth)
+            if where:
+                # one interpolation for all (ground.capacity's numbers point by point)
+                kk, ii = zip(*where)
+                capacity[list(kk), list(ii)] = self.ground.capacities(depths)
         plan = self.mpc.solve(d.mpc, t=t, x0=x0, x_ref=x_ref, contacts=contacts,
                               points=points, nominal_load=load, capacity=capacity)
         d.plan = plan

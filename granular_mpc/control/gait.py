@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -43,44 +44,73 @@ class GaitSchedule:
         """End of the initial weight shift: stepping starts here [s]."""
         return self.config.weight_shift
 
+    @cached_property
+    def _k(self) -> tuple:
+        """The schedule's per-call constants, computed once with the arithmetic of the
+        properties above (the same bits): period, start, stance and swing durations [s],
+        ``start − 1e-12`` and ``stance_duration − 1e-12`` (the two thresholds) [s], and
+        each leg's lag ``foot · 0.5 · period`` [s] (left, right)."""
+        period, start, stance, swing = (self.period, self.start, self.stance_duration,
+                                        self.swing_duration)
+        return (period, start, stance, swing, start - 1e-12, stance - 1e-12,
+                (0 * 0.5 * period, 1 * 0.5 * period))
+
     def standing(self, t: float) -> bool:
         """True during the initial weight shift (both feet down, no stepping yet)."""
-        return t < self.start - 1e-12
+        return t < self._k[4]
 
     def _local(self, t: float, foot: int) -> float:
         """Time since the start of this leg's current cycle (stance first) [s]."""
-        return (t - self.start - foot * 0.5 * self.period + 1e-9) % self.period - 1e-9
+        period, start, *_, lag = self._k
+        return (t - start - lag[foot] + 1e-9) % period - 1e-9
 
     def in_stance(self, t: float, foot: int) -> bool:
-        if self.standing(t):
+        period, start, _, _, standing_end, stance_end, lag = self._k
+        if t < standing_end:
             return True
-        return self._local(t, foot) < self.stance_duration - 1e-12
+        return (t - start - lag[foot] + 1e-9) % period - 1e-9 < stance_end
 
     def contacts(self, t: float) -> tuple[bool, bool]:
-        return self.in_stance(t, LEFT), self.in_stance(t, RIGHT)
+        """Planned contact of (left, right) at ``t`` [s]: ``in_stance`` of both legs."""
+        period, start, _, _, standing_end, stance_end, lag = self._k
+        if t < standing_end:
+            return True, True
+        return ((t - start - lag[0] + 1e-9) % period - 1e-9 < stance_end,
+                (t - start - lag[1] + 1e-9) % period - 1e-9 < stance_end)
 
     def stance_phase(self, t: float, foot: int) -> float:
         """Progress through the current stance, 0 → 1 (meaningful while in stance)."""
         if self.standing(t):
             return 0.0
-        return min(self._local(t, foot) / self.stance_duration, 1.0)
+        return min(self._local(t, foot) / self._k[2], 1.0)
 
     def swing_phase(self, t: float, foot: int) -> float:
         """Progress through the current swing, 0 → 1 (meaningful while swinging)."""
-        return min(max((self._local(t, foot) - self.stance_duration) / self.swing_duration, 0.0), 1.0)
+        _, _, stance, swing, *_ = self._k
+        return min(max((self._local(t, foot) - stance) / swing, 0.0), 1.0)
 
     def time_to_touchdown(self, t: float, foot: int) -> float:
         """Time until this leg's next scheduled touchdown [s] (0 if in stance)."""
         if self.in_stance(t, foot):
             return 0.0
-        return self.period - self._local(t, foot)
+        return self._k[0] - self._local(t, foot)
+
+    def swing_timing(self, t: float, foot: int) -> tuple[float, float]:
+        """``(time_to_touchdown(t, foot), swing_phase(t, foot))`` with the leg's cycle time
+        evaluated once (the same numbers) [s, –]."""
+        if self.in_stance(t, foot):
+            return 0.0, self.swing_phase(t, foot)
+        period, _, stance, swing, *_ = self._k
+        local = self._local(t, foot)
+        return period - local, min(max((local - stance) / swing, 0.0), 1.0)
 
     def time_to_liftoff(self, t: float, foot: int) -> float:
         """Time until this leg's next scheduled lift-off [s] (0 while swinging)."""
+        _, start, stance, *_ = self._k
         if self.standing(t):
-            first = self.start + (self.stance_duration if foot == LEFT else 0.0)
+            first = start + (stance if foot == LEFT else 0.0)
             return first - t
-        return max(self.stance_duration - self._local(t, foot), 0.0)
+        return max(stance - self._local(t, foot), 0.0)
 
 
 class CommandRamp:
@@ -157,12 +187,14 @@ def foothold(config: FootholdConfig, *, dcm: np.ndarray, v_cmd: np.ndarray,
     c = config.step_width / (1.0 + e)
     dy = lateral_sign * c - v_cmd[1] * stance_duration / (e - 1.0) \
         + config.k_position * y_error * stance_duration
-    dx = float(np.clip(dx, -config.max_step, config.max_step))
-    dy = float(np.clip(dy, -config.max_step - 0.5 * config.step_width,
-                       config.max_step + 0.5 * config.step_width))
+    # clips on scalars as min(max(·)) (np.clip's numbers for lo ≤ hi, NaN kept, without its
+    # per-call array machinery)
+    dx = float(min(max(dx, -config.max_step), config.max_step))
+    dy = float(min(max(dy, -config.max_step - 0.5 * config.step_width),
+                   config.max_step + 0.5 * config.step_width))
     y = dcm[1] + dy
     if com_y is not None and max_lateral is not None:
-        y = float(np.clip(y, com_y - max_lateral, com_y + max_lateral))
+        y = float(min(max(y, com_y - max_lateral), com_y + max_lateral))
     return np.array([dcm[0] + dx, y])
 
 

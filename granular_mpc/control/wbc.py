@@ -199,6 +199,13 @@ class WholeBodyController:
             h_point=tuple(np.asarray(poly.h, dtype=float).tolist()),
             f_max_point=float(poly.f_max))
 
+    @cached_property
+    def _torque_bounds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per-tick constants of :meth:`solve`: the torque bounds −τ_max, τ_max [N·m] (v
+        order of the actuated joints) and the rows taking v order to actuator order."""
+        tau_max = self.biped.torque_limits
+        return -tau_max, tau_max, self.biped.idx_v - 6
+
     def _new_work(self) -> WBCWork:
         n, nv, n_in, nps = self.n, self.nv, self.n_in, self.n_points
         poly = self.ground.polytope.scaled(1.0 / nps)
@@ -218,7 +225,6 @@ class WholeBodyController:
     def solve(self, data: WBCData, q: np.ndarray, v: np.ndarray, ref: WBCReference,
               feet: tuple[FootPoints, FootPoints]) -> np.ndarray:
         """Joint torques (actuator order) [N·m] for state (q, v) and the references."""
-        b = self.biped
         w = data.work
         if w is None:
             w = data.work = self._new_work()
@@ -232,7 +238,7 @@ class WholeBodyController:
         else:
             h_a, Jt, et, names, M_a, JT_a = self._assemble_numpy(data, q, v, ref, feet)
         H, g, C, l, u, lb, ub = w.H, w.g, w.C, w.l, w.u, w.lb, w.ub
-        tau_max = b.torque_limits
+        tau_min, tau_max, actuator_rows = self._torque_bounds
         t0 = time.perf_counter()
         sol = data.solver.solve(QPProblem(H, g, w.A, w.b, C, l, u, lb, ub))
         data.last_ms = (time.perf_counter() - t0) * 1e3
@@ -251,9 +257,9 @@ class WholeBodyController:
                 tau = data.last_tau.copy()
             else:
                 tau = h_a - JT_a @ ref.forces.reshape(-1)
-        tau = np.minimum(np.maximum(tau, -tau_max), tau_max)
+        tau = np.minimum(np.maximum(tau, tau_min), tau_max)
         data.last_tau = tau
-        return tau[b.idx_v - 6]          # v order → actuator order
+        return tau[actuator_rows]          # v order → actuator order
 
     def _assemble_numpy(self, data: WBCData, q: np.ndarray, v: np.ndarray, ref: WBCReference,
                        feet: tuple[FootPoints, FootPoints]):

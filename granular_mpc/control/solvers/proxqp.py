@@ -151,15 +151,25 @@ class QPProblem:
 def _finite(p: QPProblem) -> bool:
     """Whether the QP data can be handed to ProxSuite: H, g, A, b, C finite, l and u free of
     NaN (±inf allowed: a free side). A sum is non-finite iff some term is non-finite (or
-    it overflows, which these magnitudes never do): one reduction per array, not two."""
+    it overflows, which these magnitudes never do): one reduction per array, not two, and
+    the sums added (a sum of sums is non-finite iff one of them is: inf − inf is NaN).
+    The reductions are ``np.add.reduce`` / ``np.minimum.reduce`` called directly (what
+    ``ndarray.sum`` / ``min`` run, without their Python wrappers)."""
+    total = 0.0
     for arr in (p.H, p.g, p.A, p.b, p.C):
-        if arr is not None and not math.isfinite(float(arr.sum())):
-            return False
+        if arr is not None:
+            total += float(_add_reduce(arr, None))
+    if not math.isfinite(total):
+        return False
     for arr in (p.l, p.u):
         # min propagates NaN (and only NaN: ±inf are ordered)
-        if arr is not None and arr.size and math.isnan(float(arr.min())):
+        if arr is not None and arr.size and math.isnan(float(_min_reduce(arr, None))):
             return False
     return True
+
+
+#: the ufunc reductions :func:`_finite` and the solution check call directly
+_add_reduce, _min_reduce = np.add.reduce, np.minimum.reduce
 
 
 @dataclass
@@ -269,7 +279,7 @@ class ProxQPSolver:
         info = r.info
         status = self._status_table.get(info.status, QPStatus.FAILED)
         x = np.array(r.x)
-        if not math.isfinite(float(x.sum())):
+        if not math.isfinite(float(_add_reduce(x, None))):
             status = QPStatus.NON_FINITE
         return QPSolution(x, status, int(info.iter), 0.0, float(info.objValue),
                           np.array(r.y), np.array(r.z))
