@@ -2,7 +2,7 @@
 
     GRANULAR_MPC_PROXSUITE=generic python bench/paper_gaps.py [--out runs/paper_gaps]
         [--json PATH] [--cases base actuators ...] [--seconds 12] [--quick]
-        [--dataset DIR/dataset] [--fx] [--replay-only]
+        [--dataset DIR/dataset] [--fx] [--replay-only] [--planar-only]
 
 Each *knob* changes one thing of the paper comparison's sweep protocol
 (``sim/paper_sweep.yaml``: rigid-ground controller, the paper's gait + 39 ms touchdown
@@ -29,7 +29,8 @@ too: the rigid model's low F_z (how the stance foot is held, the impact, Newton'
 balance) and the planar model's intrusion error (the frontal-plane state its terrain law
 sees); with ``--fx`` the knobs of ``bench/paper_fx.py`` (the mid-stance F_x swing of the
 default sand run). ``--replay-only`` runs only those and merges them into an existing
-``--json``.
+``--json``. ``--planar-only`` (with ``--dataset``) runs only the planar model's under-load
+ablation of ``bench/paper_planar.py`` (reading ``planar_load``) and merges it likewise.
 
 Writes ``OUT/runs/<case>_<terrain>/`` (run folders) and, with ``--json``, every figure as
 JSON (the paper comparison's claims cite these numbers: docs/paper-experiment-notes.md §7).
@@ -55,6 +56,7 @@ import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
 from paper_ablation import failing_signals as ablation_signals  # noqa: E402
 from paper_fx import main as fx_main  # noqa: E402
+from paper_planar import run as planar_load_run  # noqa: E402
 
 from granular_mpc.analysis import plateau_by_stance, rolling_from_log  # noqa: E402
 from granular_mpc.columns import joint_columns  # noqa: E402
@@ -517,6 +519,9 @@ def main(argv=None) -> dict:
                     help="only the replay ablations (--dataset) and the F_x knobs (--fx), "
                          "merged into the readings of an existing --json (its other entries "
                          "kept); no paper-sweep runs")
+    ap.add_argument("--planar-only", action="store_true",
+                    help="only the planar model's under-load ablation (bench/paper_planar.py) "
+                         "on --dataset, merged into the readings of --json as 'planar_load'")
     ap.add_argument("--fx", action="store_true",
                     help="also run the F_x-swing knobs of bench/paper_fx.py (8 s each)")
     args = ap.parse_args(argv)
@@ -525,6 +530,14 @@ def main(argv=None) -> dict:
         for k in KNOBS:
             print(f"{k.name:14s} {'+'.join(k.terrains):15s} {k.speed:g} m/s  {k.what}")
         return {}
+    if args.planar_only:
+        if not args.dataset:
+            ap.error("--planar-only needs --dataset")
+        rep = {"planar_load": planar_load_run(Path(args.dataset), _replay_setup)}
+        if args.json:
+            merge_readings(Path(args.json), rep, " ".join(["python bench/paper_gaps.py",
+                                                            *(argv or sys.argv[1:])]))
+        return rep
     if args.replay_only:
         if not args.dataset and not args.fx:
             ap.error("--replay-only needs --dataset and/or --fx")

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pinocchio as pin
 import pytest
 
 from granular_mpc.paper.gaps import RIGID_KNOBS, load_gaps
@@ -153,3 +154,79 @@ def test_replay_only_merge_keeps_the_other_entries(tmp_path):
     assert doc["readings"] == {"cot_electrical": 1, "rigid_grf": {"n_stances": 3}}
     assert doc["merged"] == [{"command": "python bench/paper_gaps.py -x",
                               "readings": ["rigid_grf"]}]
+
+
+def test_planar_load_knobs_are_opt_in(windows):
+    """The default planar replay is the paper's model (force through the contact
+    coordinates only, the other foot loaded); ``moment='apply'`` adds the terrain moment
+    about the sole-arc centre, ``swing_force='off'`` never loads the other foot."""
+    rm, ws = windows
+    a = replay_planar(rm, ws[0])
+    b = replay_planar(rm, ws[0], moment="drop", swing_force="terrain", diagnostics=True)
+    np.testing.assert_array_equal(a["grf_z"], b["grf_z"])
+    np.testing.assert_array_equal(a["q_left_knee"], b["q_left_knee"])
+    assert "com_z" in b and "com_z" not in a and b["sagittal_q"].shape == (ws[0].n, 7)
+    # the COM lies well above the stance contact point
+    assert np.all(np.isfinite(b["com_z"])) and 0.2 < b["com_z"][0] - b["sagittal_q"][0, 6] < 0.6
+    m = replay_planar(rm, ws[0], moment="apply")
+    assert not np.array_equal(a["q_left_knee"], m["q_left_knee"])
+    off = replay_planar(rm, ws[0], swing_force="off", diagnostics=True)
+    assert np.all(off["other_force"][np.isfinite(off["other_force"])] == 0.0)
+    with pytest.raises(ValueError, match="moment must be one of"):
+        replay_planar(rm, ws[0], moment="twist")
+    with pytest.raises(ValueError, match="swing_force must be one of"):
+        replay_planar(rm, ws[0], swing_force="half")
+
+
+def test_held_plant_holds_the_trunk_yaw(windows):
+    """bench/paper_planar.py's hold: a yaw of the trunk since the start gives a restoring
+    moment about z of −k ψ and nothing about x; no hold, no wrench."""
+    from paper_planar import HOLD_ROT, held_plant
+
+    rm, ws = windows
+    w = ws[0]
+    plant, held = held_plant(rm, ("yaw",))
+    d = plant.new_data(w.q0, np.zeros(rm.biped.model.nv))
+    q = d.q.copy()
+    psi = 0.01
+    quat = pin.Quaternion(pin.rpy.rpyToMatrix(0.0, 0.0, psi)
+                          @ pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix())
+    q[3:7] = [quat.x, quat.y, quat.z, quat.w]
+    wr = d.base_wrench(q, np.zeros(rm.biped.model.nv))
+    assert wr[5] == pytest.approx(-HOLD_ROT[0] * psi, rel=1e-6)
+    assert abs(wr[3]) < 1e-9 and abs(wr[1]) < 1e-9
+    assert held.replay_plant(None)[0] is plant
+    free, _ = held_plant(rm, ())
+    assert free.new_data(w.q0, w.v0).base_wrench is None
+    with pytest.raises(ValueError, match="holds must be among"):
+        held_plant(rm, ("pitch",))
+
+
+def test_planar_load_reason_cell(tmp_path):
+    """The planar row quotes the under-load ablation (Newton and the held freedoms)."""
+    case = lambda b: {"rmse_mm": 2.0, "bias_mm": b,  # noqa: E731
+                      "grf_z_error_by_phase_N": [-1.0] * 9 + [-7.25]}
+    load = {"planar_paper": {**case(-1.47), "newton": {"mean_fz_both_N": 98.8,
+                                                       "m_g_plus_a_N": 98.9,
+                                                       "com_dz_mm": -9.3}},
+            "planar_moment": case(-1.38), "held_none": case(0.03), "held_yaw": case(-0.73),
+            "held_abduction": case(-0.41), "held_roll": case(0.06),
+            "held_lateral": case(0.42), "held_all": case(-0.87),
+            "measured_yaw": {"abs_change_mrad": 90.2}}
+    p = tmp_path / "g.json"
+    p.write_text(json.dumps({"runs": [], "pairs": {}, "readings": {
+        "planar_intrusion": {"n_stances": 7}, "planar_load": load}}))
+    text = load_gaps(p).planar_intrusion()
+    assert "falls 9.3 mm" in text and "trunk yaw -0.73 mm" in text
+    assert "7.2 N low" in text and "all four -0.87 mm" in text
+    assert "turns 90 mrad about z" in text
+    p.write_text(json.dumps({"runs": [], "pairs": {}, "readings": {
+        "planar_intrusion": {"n_stances": 7}}}))
+    assert "trunk yaw" not in load_gaps(p).planar_intrusion()
+
+
+def test_planar_only_needs_a_dataset():
+    from paper_gaps import main
+
+    with pytest.raises(SystemExit):
+        main(["--planar-only"])

@@ -192,7 +192,38 @@ class GapAblations:
                 f"{_f(-min(fz_g[3:7]), 1)} N) and its knees drift to {_f(kn[-1])} rad by "
                 "lift-off; the frontal inputs leave that under-load as it is: in "
                 "single support the sagittal model's vertical dynamics under the mapped "
-                "torques carry less load onto the foot")
+                "torques carry less load onto the foot" + self.planar_load())
+
+    def planar_load(self) -> str:
+        """Which term of the sagittal model under-loads the foot (``planar_load``), as a
+        sentence starting with ``". "``; empty if not measured."""
+        g = self.readings.get("planar_load", {})
+        if not g:
+            return ""
+        b = lambda k: _f(g.get(k, {}).get("bias_mm"))  # noqa: E731
+        nw = g.get("planar_paper", {}).get("newton", {})
+        held = g.get("held_yaw", {})
+        yaw = g.get("measured_yaw", {})
+        fz = held.get("grf_z_error_by_phase_N", [math.nan] * 10)
+        return (f". Newton on the sagittal model's own COM: both feet's mean F_z "
+                f"{_f(nw.get('mean_fz_both_N'), 1)} N = m (g + Δv_z/T) "
+                f"{_f(nw.get('m_g_plus_a_N'), 1)} N with the robot's full mass: its COM "
+                f"falls {_f(-nw.get('com_dz_mm', math.nan), 1)} mm over the stance, a downward "
+                "acceleration, not a lighter model. Holding in the 3-D model, one at a time, "
+                "a freedom the sagittal model lacks (bias, planar "
+                f"{b('planar_paper')} mm, 3-D {b('held_none')} mm): trunk yaw "
+                f"{b('held_yaw')} mm (F_z up to {_f(-min(fz[4:]), 1)} N low in late stance), "
+                f"hip abduction {b('held_abduction')}, trunk roll {b('held_roll')}, lateral "
+                f"position {b('held_lateral')} mm, all four {b('held_all')} mm; the terrain "
+                f"moment about the sole-arc centre the paper's model drops: "
+                f"{b('planar_moment')} mm with it. The largest measured term is the trunk "
+                "yaw the sagittal model lacks (measured: the trunk turns "
+                f"{_f(yaw.get('abs_change_mrad'), 0)} mrad about z over a stance, the sign "
+                "alternating with the stance side): with the hip-abduction axes 0.15 m apart "
+                "the swing leg's fore-aft reaction turns the 3-D trunk about z, where the "
+                "sagittal model must take it in fore-aft force and pitch (its stance knee "
+                "folds); ≈ 0.5 mm (the projection of the abducted legs, the terrain law on "
+                "planar kinematics) is not separated")
 
     def fall_05(self) -> str:
         r = self.run("fall_v05", "dry_sand")

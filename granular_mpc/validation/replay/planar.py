@@ -9,7 +9,11 @@ Opt-in ablation (``bench/paper_gaps.py``; the default is the paper's model): ``f
 frontal model's lateral position and velocity, no foot roll), ``"measured"`` (the measured
 3-D plant's lateral position, velocity and foot roll), ``"measured_roll"`` (only the
 measured foot roll), ``"measured_lateral"`` (only the measured lateral position and
-velocity).
+velocity); ``moment`` — ``"drop"`` (the paper's: the terrain force acts through the contact
+coordinates only) or ``"apply"`` (also its moment about the sole-arc centre);
+``swing_force`` — ``"terrain"`` or ``"off"`` (the other foot never loaded);
+``diagnostics`` — also the sagittal model's COM height and vertical velocity, the other
+foot's force and the sagittal state, for Newton's check (``bench/paper_planar.py``).
 """
 
 from __future__ import annotations
@@ -35,6 +39,10 @@ from .rigid import measured_configurations, smoothed_path
 
 #: the ``frontal`` options of :func:`replay_planar`
 FRONTAL_MODES = ("model", "measured", "measured_roll", "measured_lateral")
+#: the ``moment`` options of :func:`replay_planar` (``"drop"``: the paper's model)
+MOMENT_MODES = ("drop", "apply")
+#: the ``swing_force`` options of :func:`replay_planar`
+SWING_FORCE_MODES = ("terrain", "off")
 
 
 _PLANAR_CACHE: dict = {}
@@ -59,6 +67,12 @@ def _planar_kin(kin, x, y, z, pitch, vx, vy, vz, wy, R, roll: float = 0.0) -> No
     kin[15:18] = (0.0, wy, 0.0)
 
 
+def terrain_moment(buf) -> np.ndarray:
+    """Moment of one foot's last evaluated terrain wrench about its sole-arc centre A, in
+    W [N·m] (zero when the foot was skipped)."""
+    return buf.kin[3:12].reshape(3, 3, order="F") @ buf.wrench_local[3:6]
+
+
 def measured_frontal(biped: Biped, w: StanceWindow, dt_s: float):
     """The stance foot's measured frontal-plane state per scored sample: contact-point
     lateral position y [m] (local frame), its velocity [m/s] and the foot's roll [rad]."""
@@ -75,7 +89,8 @@ def measured_frontal(biped: Biped, w: StanceWindow, dt_s: float):
 
 
 def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None = None, *,
-                  frontal: str = "model") -> dict:
+                  frontal: str = "model", moment: str = "drop", swing_force: str = "terrain",
+                  diagnostics: bool = False) -> dict:
     """Replay on the paper's decoupled sagittal + frontal models.
 
     Both feet use the terrain law of the 3-D model evaluated on their planar kinematics:
@@ -85,9 +100,21 @@ def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None =
     (decoupled: each plane sees the same vertical force); the swing foot's force enters
     through the swing contact Jacobian. Semi-implicit Euler at the plant step.
     ``frontal``: :data:`FRONTAL_MODES` (module docstring); ``"model"`` is the paper's.
+    ``moment``: :data:`MOMENT_MODES` — ``"drop"`` (the paper's: each foot's terrain force
+    acts through the contact coordinates only, i.e. at the sole-arc centre A) or ``"apply"``
+    (also the terrain wrench's moment about A, on the calf angle in the sagittal model and
+    on the leg line in the frontal one, as the 3-D model has it).
+    ``swing_force``: :data:`SWING_FORCE_MODES` — ``"terrain"`` (default) or ``"off"`` (the
+    other foot never loaded). ``diagnostics``: also return the sagittal model's whole-body
+    COM height ``com_z`` [m] and vertical velocity ``com_vz`` [m/s] and the other foot's
+    force ``other_force`` [N] and the sagittal state ``sagittal_q`` (n, 7) per scored sample.
     """
     if frontal not in FRONTAL_MODES:
         raise ValueError(f"frontal must be one of {FRONTAL_MODES}, got {frontal!r}")
+    if moment not in MOMENT_MODES:
+        raise ValueError(f"moment must be one of {MOMENT_MODES}, got {moment!r}")
+    if swing_force not in SWING_FORCE_MODES:
+        raise ValueError(f"swing_force must be one of {SWING_FORCE_MODES}, got {swing_force!r}")
     variant = variant or Variant()
     biped = model.biped
     scored = w
@@ -139,6 +166,11 @@ def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None =
         y_m, vy_m, roll_m = measured_frontal(biped, w, dt * model.steps_per_sample)
     use_lat = frontal in ("measured", "measured_lateral")
     use_roll = frontal in ("measured", "measured_roll")
+    use_moment = moment == "apply"
+    m_st = m_sw = np.zeros(3)
+    com_z, com_vz = np.full(n, np.nan), np.full(n, np.nan)
+    other = np.full((n, 3), np.nan)
+    sag_q = np.full((n, 7), np.nan)
 
     def foot_force(k_, x, y, z, ptch, vx, vy, vz, wy, roll=0.0):
         buf = cd.feet[k_]
@@ -166,12 +198,21 @@ def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None =
                 f_o = foot_force(o, ps["contact_swing"][0], pf["contact_swing"][0],
                                  ps["contact_swing"][1], qs[1] + sv.foot_mount_pitch,
                                  vs[0], vf[0], vs[1], dqs[1])
+                if swing_force == "off":
+                    f_o = np.zeros(3)
+                elif use_moment:
+                    m_sw = terrain_moment(cd.feet[o])
                 gs = (Bs @ ts + contact_jacobian(sag, qs).T @ np.array([f[0], f[2]])
                       + Jsw_s.T @ np.array([f_o[0], f_o[2]])
                       - coriolis_matrix(sag, qs, dqs) @ dqs - gravity_vector(sag, qs))
                 gf = (Bf @ tf + contact_jacobian(fro, qf).T @ np.array([f[1], f[2]])
                       + Jsw_f.T @ np.array([f_o[1], f_o[2]])
                       - coriolis_matrix(fro, qf, dqf) @ dqf - gravity_vector(fro, qf))
+                if use_moment:      # moments about the arc centres on the calf / leg angles
+                    gs[3] += m_st[1]
+                    gs[1] += m_sw[1]
+                    gf[0] += m_st[0]
+                    gf[2] += m_sw[0]
                 dqs = dqs + dt * np.linalg.solve(mass_matrix(sag, qs), gs)
                 dqf = dqf + dt * np.linalg.solve(mass_matrix(fro, qf), gf)
                 qs = qs + dt * dqs
@@ -182,11 +223,21 @@ def replay_planar(model: ReplayModel, w: StanceWindow, variant: Variant | None =
                     raise FloatingPointError
             qa[k] = actuated_from_sagittal(sv, qs[:5]) + actuated_from_frontal(fv, qf[:3])
             grf[k] = f
+            if diagnostics:
+                com_z[k] = points(sag, qs)["com"][1]
+                sag_q[k] = qs
+                other[k] = f_o
             buf = cd.feet[i]
             intr[k] = buf.diag[:, 2:5].mean(axis=0) if buf.state[:, 6].max() > 0.5 else 0.0
     except (FloatingPointError, np.linalg.LinAlgError):
         diverged = True
-    return replay_outputs(qa, grf, intr, np.zeros(n), diverged, variant, scored, J)
+    out = replay_outputs(qa, grf, intr, np.zeros(n), diverged, variant, scored, J)
+    if diagnostics:
+        if n > 1:
+            com_vz[1:] = np.diff(com_z) / (dt * model.steps_per_sample)
+        out.update(com_z=com_z, com_vz=com_vz, other_force=other, sagittal_q=sag_q)
+    return out
 
 
-__all__ = ["replay_planar", "measured_frontal", "FRONTAL_MODES"]
+__all__ = ["replay_planar", "measured_frontal", "terrain_moment", "FRONTAL_MODES",
+           "MOMENT_MODES", "SWING_FORCE_MODES"]
