@@ -8,7 +8,7 @@ import numpy as np  # noqa: F401  (loads BLAS in this process and its forks)
 import pytest
 from threadpoolctl import threadpool_info
 
-from granular_mpc.parallel import PoolRun, map_tasks, worker_count
+from granular_mpc.parallel import PoolRun, WorkerPool, map_tasks, worker_count
 
 
 def square(x: int) -> int:
@@ -50,6 +50,24 @@ def test_pool_results_come_back_in_task_order(ordered):
     assert sorted(seen) == sorted(res.results)
     if ordered:
         assert seen == list(res.results)
+
+
+def test_worker_pool_keeps_its_workers_across_maps():
+    with WorkerPool(2, start_method="fork") as pool:
+        a = pool.map(worker_pid, range(6))
+        b = pool.map(square, [3, 4])
+        c = pool.map(worker_pid, range(6))
+    assert a.complete and b.results == (9, 16) and c.complete
+    assert os.getpid() not in a.results + c.results
+    assert len(set(a.results) | set(c.results)) <= 2          # the same two processes
+    assert pool.closed
+
+
+def test_worker_pool_closes_on_a_failing_task():
+    pool = WorkerPool(2, start_method="fork")
+    with pytest.raises(ValueError):
+        pool.map(math.sqrt, [4.0, -1.0, 9.0])
+    assert pool.closed
 
 
 def test_pool_runs_in_other_processes_with_spawn():

@@ -93,6 +93,37 @@ def test_pool_matches_serial(clean_windows):
         np.testing.assert_allclose(p["q_left_knee"], s_["q_left_knee"], rtol=0, atol=1e-12)
 
 
+def test_pool_workers_serve_every_run_and_unpicklable_variants_fork(clean_windows):
+    """The workers are forked once and serve later runs (variants sent pickled); a variant
+    that cannot be pickled (a sensor effect made in a closure) runs in a pool of its own,
+    with the same outputs as in this process."""
+    import dataclasses
+
+    from granular_mpc.effects import all_effects, effect_info
+
+    ds, rm, ws = clean_windows
+    few = ws[:6]
+    coh = effect_variant([(effect_info("cohesion"), {"suction": 3000.0})])
+    scale = 1.5
+
+    def closure_sensor(cols, p, ctx):                       # not picklable
+        return {"q_left_knee": scale * np.asarray(cols["q_left_knee"])}
+
+    info = next(i for i in all_effects(("sensor",)).values())
+    odd = Variant(sensors=((dataclasses.replace(info, name="_closure", fn=closure_sensor),
+                            {}),))
+    with ReplayPool(rm, few, workers=2) as pool:
+        first = pool.run({"a": Variant()})["a"]
+        second = pool.run({"c": coh})["c"]
+        assert pool.forks == 1
+        third = pool.run({"o": odd})["o"]
+        assert pool.forks == 2
+    for k, w in enumerate(few):
+        for out, var in ((first[k], Variant()), (second[k], coh), (third[k], odd)):
+            ser = replay_granular(rm, w, var)
+            np.testing.assert_array_equal(out["q_left_knee"], ser["q_left_knee"])
+
+
 @pytest.fixture(scope="module")
 def reports(workbench_data, tmp_path_factory):
     data = workbench_data("cohesion")

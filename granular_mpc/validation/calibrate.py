@@ -173,12 +173,18 @@ def calibrate(windows: Sequence[StanceWindow], terrain, *, n_slices: int,
     u_h = s["v_h"] - s["f_h"] / (n_slices * K * tau)
     u_z = s["v_z"] - s["f_z"] / (n_slices * K * tau)
     X = np.vstack([s["depth"], s["pitch"], u_h, u_z])
+    # F_z of one sample and its gradient in θ, as one SX function mapped over the samples
+    # (5–6× faster than the same expression built over all samples as an MX graph, and
+    # the same numbers bit for bit)
     f = terrain.casadi_foot_forces()
-    th = ca.MX.sym("th", 4)
-    Xs = ca.MX.sym("X", 4, N)
-    out = f.map(N, "serial")(Xs, ca.repmat(th, 1, N))
-    fz = ca.transpose(out[1, :])
-    fun = ca.Function("cal", [Xs, th], [fz, ca.jacobian(fz, th)])
+    x1, th1 = ca.SX.sym("x", 4), ca.SX.sym("th", 4)
+    fz1 = f(x1, th1)[1]
+    fun1 = ca.Function("cal", [x1, th1], [fz1, ca.jacobian(fz1, th1)]).map(N, "serial")
+
+    def fun(Xdm, theta):
+        F, Jrow = fun1(Xdm, ca.repmat(ca.DM(theta), 1, N))
+        return F, np.asarray(Jrow).reshape(N, 4)        # row i: ∂F_z,i/∂θ
+
     Xdm = ca.DM(X)
     y = s["f_z"]
 
@@ -187,13 +193,21 @@ def calibrate(windows: Sequence[StanceWindow], terrain, *, n_slices: int,
         t[idx] = p
         return t
 
+    last: list = [None, None, None]            # (p, F, J) of the last evaluation
+
+    def evaluate(p):
+        # one CasADi call gives F and its Jacobian: least_squares asks for both at the
+        # same point (the residual, then the Jacobian), so the last call is reused
+        if last[0] is None or not np.array_equal(last[0], p):
+            F, Jt = fun(Xdm, full(p))
+            last[:] = [np.array(p, dtype=float), np.asarray(F).ravel(), np.asarray(Jt)]
+        return last[1], last[2]
+
     def resid(p):
-        F, _ = fun(Xdm, full(p))
-        return np.asarray(F).ravel() - y
+        return evaluate(p)[0] - y
 
     def jac(p):
-        _, Jt = fun(Xdm, full(p))
-        return np.asarray(Jt)[:, idx]
+        return evaluate(p)[1][:, idx]
 
     lo = np.array([CAL_PARAMS[p][0] for p in params])
     hi = np.array([CAL_PARAMS[p][1] for p in params])

@@ -10,7 +10,6 @@ from typing import Mapping, Sequence
 
 import numpy as np
 from scipy.stats import spearmanr
-from sklearn.feature_selection import mutual_info_regression
 from statsmodels.stats.diagnostic import acorr_ljungbox
 
 from ..prepare import StanceWindow, channel_unit
@@ -18,6 +17,7 @@ from .candidates import Column
 from .cubes import bin_means, residual_cube
 from .localization_records import (Cell, ChannelStructure, Correlate, Localization, SpeedBias,
                                    Whiteness)
+from .mutual_info import mutual_info
 from .problem import Problem
 from .regression import Regression
 from .residuals import Residuals
@@ -87,7 +87,7 @@ def _correlates(windows, R, channels, edges, sigma, seed) -> dict[str, tuple[Cor
             idx = np.flatnonzero(m)
             if idx.size > MI_MAX_SAMPLES:
                 idx = rng.choice(idx, MI_MAX_SAMPLES, replace=False)
-            mi = [float(v) for v in mutual_info_regression(X[idx], y[idx], random_state=seed)]
+            mi = [float(v) for v in mutual_info(X[idx], y[idx], random_state=seed)]
         out = [Correlate(f, rho, p, v) for f, (rho, p), v in zip(names, rho_p, mi)]
         out.sort(key=lambda e: -(abs(e.spearman) if e.spearman == e.spearman else 0))
         correlates[ch] = tuple(out)

@@ -69,7 +69,9 @@ def load_problem(data_dir: str | Path, *, terrain: Any = "dry_sand", sim: SimCon
     ds = load_dataset(data_dir) if dataset is None else dataset
     biped = load_biped(ds.meta.robot, with_visuals=False)
     cfg0 = model_terrain(terrain)
-    rm0 = build_replay_model(biped, cfg0, sample_rate_hz=ds.meta.sample_rate_hz, sim=sim)
+    # its terrain and contact stiffness are what the stages use: no compiled plant
+    rm0 = build_replay_model(biped, cfg0, sample_rate_hz=ds.meta.sample_rate_hz, sim=sim,
+                             compile_plant=False)
     windows = stance_windows(ds, biped, contact_stiffness=rm0.contact_stiffness)
     if len(windows) < MIN_WINDOWS:
         raise GranularMpcError(f"{data_dir}: {len(windows)} complete stance phases; the "

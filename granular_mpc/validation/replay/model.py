@@ -156,11 +156,13 @@ class ReplayModel:
 def build_replay_model(biped: Biped, terrain_cfg, *, sample_rate_hz: float,
                        sim: SimConfig | None = None,
                        terrain_effects: Sequence[str] = (),
-                       plant: str | None = None) -> ReplayModel:
+                       plant: str | None = None, compile_plant: bool = True) -> ReplayModel:
     """Compile the terrain with the terrain-force effects ``terrain_effects`` (all at their
     neutral values: switch them on through :class:`Variant` θ); ``plant`` (``compiled``,
     ``reference``, default :func:`~granular_mpc.dynamics.select.default_plant_choice`)
-    chooses the plant of the ``granular`` replay."""
+    chooses the plant of the ``granular`` replay. ``compile_plant=False`` leaves building
+    the compiled plant (≈ 0.3 s even with its library cached) to the first replay, or to
+    the :class:`~.pool.ReplayPool` before it forks: for a model that is never replayed."""
     sim = sim or SimConfig()
     names = []
     for n in terrain_effects:
@@ -174,7 +176,7 @@ def build_replay_model(biped: Biped, terrain_cfg, *, sample_rate_hz: float,
     model = ReplayModel(biped, terrain, sim, sps,
                         tuple(list(already) + [s.name for s in specs]),
                         default_plant_choice() if plant is None else plant)
-    if model.plant == "compiled":
+    if model.plant == "compiled" and compile_plant:
         model.compiled_plant()               # here, so that forked workers inherit it
     return model
 
