@@ -1,14 +1,15 @@
-"""Stage 4, refine: add effects one at a time — the best significant contenders are refined
-by Gauss–Newton replays, the one with the lower AICc of its replayed residual that passes
-honest acceptance (:mod:`.acceptance`: its replays improve its credited channels, its
-coefficient is physical) is added, the others are re-tested conditionally on the refined
-model — then the final ranking and the refined model's held-out statistics
-(``docs/validation.md`` §3.3)."""
+"""Stage 4, refine: add effects one at a time — the best significant contenders, and the
+screening's indistinguishable partners of the leading one (significant or not), are each
+refined by the same number of Gauss–Newton replay iterations; the one with the lowest AICc
+of its replayed residual that passes honest acceptance (:mod:`.acceptance`: its replays
+improve its credited channels, its coefficient is physical) is added, the others are
+re-tested conditionally on the refined model — then the final ranking and the refined
+model's held-out statistics (``docs/validation.md`` §3.3)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Collection, Mapping, Sequence
 
 import numpy as np
 
@@ -23,7 +24,7 @@ from .problem import Problem
 from .ranking_records import CandidateStats, ConditionalResult, Ranked, RefinedFit
 from .regression import aicc
 from .residuals import Residuals
-from .result import ConditionalRow, RefinedHeldout, SelectionStep
+from .result import ConditionalRow, IndistinguishablePair, RefinedHeldout, SelectionStep
 from .screen import Screening, candidate_stats, channel_heldout
 
 #: bounds of the scale along the secant from the calibrated to the refined model
@@ -70,6 +71,44 @@ def _neutral(candidates: CandidateSet, selected) -> dict[str, float]:
     return {c.key: c.neutral for s in selected for c in candidates.columns[s]}
 
 
+def contenders_for(stats: Sequence[CandidateStats], selected: Sequence[str],
+                   rejected: Collection[str], max_contenders: int,
+                   pairs: Sequence[IndistinguishablePair] = ()) -> list[CandidateStats]:
+    """The candidates the replays refine before one is added.
+
+    The first ``max_contenders`` significant candidates not yet added or rejected, then
+    every candidate the screening could not tell from the *leading* contender (``pairs``:
+    its nearly collinear or bootstrap-splitting partners, :func:`.screen.indistinguishable`)
+    that is not among them, significant or not. A partner that splits the bootstrap
+    selections with the leader is not significant by construction (neither reaches the
+    inclusion threshold), so without this rule the nonlinear comparison that can separate
+    the two — their refined replays' AICc — never runs and the linear leader is added by
+    default. The partner still has to win that comparison and pass the acceptance
+    (:mod:`.acceptance`) to be added. Without a significant leader nothing is refined, so
+    the rule adds nothing on data where the screening finds nothing.
+
+    Args:
+        stats: the current candidate statistics, best first.
+        selected: the effects already added.
+        rejected: the effects the acceptance rejected.
+        max_contenders: significant candidates refined.
+        pairs: the screening's indistinguishable pairs (pass none once an effect has been
+            added: they were measured against the calibrated model only).
+
+    Returns:
+        The contenders, in the order of ``stats`` then the partners.
+    """
+    free = [r for r in stats if r.effect not in selected and r.effect not in rejected]
+    out = [r for r in free if r.significant][:max_contenders]
+    if not out:
+        return out
+    lead = out[0].effect
+    partners = {b for p in pairs for a, b in (p.effects, p.effects[::-1]) if a == lead}
+    have = {r.effect for r in out}
+    out += [r for r in free if r.effect in partners and r.effect not in have]
+    return out
+
+
 def _conditional_row(r: CandidateStats) -> ConditionalRow:
     return ConditionalRow(r.effect, r.heldout_error_reduction, r.heldout_error_reduction_stance,
                           r.delta_aicc, r.inclusion_probability, r.effect_size, r.significant)
@@ -78,9 +117,10 @@ def _conditional_row(r: CandidateStats) -> ConditionalRow:
 def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, res: Residuals,
            scr: Screening, pool: ReplayPool, *, n_boot: int, seed: int, max_effects: int,
            max_contenders: int, refine_iterations: int) -> Refinement:
-    """Add at most ``max_effects`` effects (each refined by ``refine_iterations`` replay
-    Gauss–Newton iterations; ``max_contenders`` significant candidates are refined before
-    one is added)."""
+    """Add at most ``max_effects`` effects: ``max_contenders`` significant candidates, and
+    the screening's indistinguishable partners of the leading one (:func:`contenders_for`),
+    are each refined by ``refine_iterations`` replay Gauss–Newton iterations; the lowest
+    refined AICc that passes the acceptance is added."""
     windows, channels, edges = problem.windows, problem.channels, problem.edges
     geo = res.geometry
     base_keys = list(scr.base_keys)
@@ -107,9 +147,8 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
         return aicc(float(y_ @ y_), y_.size * d_.n_eff_factor, k_), float(y_ @ y_)
 
     while len(selected) < max_effects:
-        contenders = [r for r in stats if r.significant and r.effect not in selected
-                      and r.effect not in rejected]
-        contenders = contenders[:max_contenders]
+        contenders = contenders_for(stats, selected, rejected, max_contenders,
+                                    scr.indistinguishable if not selected else ())
         if not contenders:
             break
         prev_vals = _values(fitted, candidates, selected)
@@ -119,22 +158,17 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
             for p, est in r.params.items():
                 start[f"{r.effect}.{p}"] = float(est.value)
             sel = selected + [r.effect]
-            its = 1 if len(contenders) > 1 else refine_iterations
+            # every contender fully refined: AICc compares the models at their optima, not
+            # after one step from the linear estimates (which favours the faster-converging)
             fit = refine_replays(problem, pool, res, candidates, sel, start,
-                                 nuisance_columns(theta_final), iterations=its)
+                                 nuisance_columns(theta_final), iterations=refine_iterations)
             score, rss = refined_score(fit, sel)
-            tried.append((score, r, fit, its))
+            tried.append((score, r, fit))
             refined_fits[r.effect].append(RefinedFit(tuple(selected), score, rss,
                                                      dict(fit.fitted[r.effect])))
         tried.sort(key=lambda t: t[0])
         chosen = None
-        for _, cand, fit, its in tried:       # by AICc; the first that passes is added
-            sel = selected + [cand.effect]
-            if its < refine_iterations:       # finish its refinement
-                fit = refine_replays(problem, pool, res, candidates, sel,
-                                     _values(fit.fitted, candidates, sel),
-                                     nuisance_columns(fit.theta),
-                                     iterations=refine_iterations - its)
+        for _, cand, fit in tried:            # by AICc; the first that passes is added
             acc = judge(windows, channels, res.sigma, candidates.infos[cand.effect],
                         fit.fitted[cand.effect], final_preds, fit.preds)
             acceptance.append(acc)
@@ -228,4 +262,4 @@ def _refined_heldout(problem, candidates, res, scr, selected, fitted,
         REFINED_HELDOUT_NOTE)
 
 
-__all__ = ["Refinement", "refine", "SECANT_BOUNDS"]
+__all__ = ["Refinement", "refine", "contenders_for", "SECANT_BOUNDS"]

@@ -1,0 +1,92 @@
+"""The refinement's contender rule (``diagnosis.refine.contenders_for``): the screening's
+indistinguishable partner of the leading candidate is refined by replays even when it is
+not significant, and nothing is refined without a significant leader."""
+
+from granular_mpc.validation.diagnosis.ranking_records import CandidateStats
+from granular_mpc.validation.diagnosis.refine import contenders_for
+from granular_mpc.validation.diagnosis.result import IndistinguishablePair
+from granular_mpc.validation.diagnosis.screen import (MIN_SHARED_INCLUSION, inclusion_ties,
+                                                      share_inclusion)
+from granular_mpc.validation.diagnosis.thresholds import MAX_DELTA_AICC, MIN_INCLUSION
+
+
+def _row(effect: str, reduction: float, inclusion: float, *, passes: bool = True) -> dict:
+    """A screening row (the dict ``candidate_stats`` builds before its records)."""
+    return dict(effect=effect, kind="terrain",
+                heldout_error_reduction=reduction if passes else 0.0,
+                heldout_error_reduction_stance=0.5, delta_aicc=MAX_DELTA_AICC - 10.0,
+                folds_improved="3/3", effect_size=3.0, params={}, main="p", depends_on=(),
+                doc="", inclusion_probability=inclusion,
+                significant=passes and inclusion >= MIN_INCLUSION)
+
+
+def _stats(rows: list[dict]) -> list[CandidateStats]:
+    rows.sort(key=lambda r: -r["heldout_error_reduction"])
+    return [CandidateStats(**r, rank=i + 1) for i, r in enumerate(rows)]
+
+
+def _split_screening():
+    """joint_friction and depth_hardening split the bootstrap (neither reaches
+    MIN_INCLUSION alone: the screening makes the leader significant, not the partner);
+    cohesion passes nothing; inertial_drag is significant on its own further down (its
+    bootstrap share taken from the others' selections is not part of the split)."""
+    half = MIN_INCLUSION / 2 + 0.02
+    assert half >= MIN_SHARED_INCLUSION and half < MIN_INCLUSION
+    rows = [_row("joint_friction", 0.40, half), _row("depth_hardening", 0.35, half),
+            _row("cohesion", 0.0, 0.0, passes=False)]
+    rows.sort(key=lambda r: -r["heldout_error_reduction"])
+    share_inclusion(rows)
+    rows.append(dict(_row("inertial_drag", 0.2, 0.9)))
+    stats = _stats(rows)
+    pairs = [IndistinguishablePair(p, 0.5, (0.4, 0.35), "") for p in inclusion_ties(stats)]
+    return stats, pairs
+
+
+def test_partner_that_is_not_significant_is_refined():
+    stats, pairs = _split_screening()
+    by = {r.effect: r for r in stats}
+    assert by["joint_friction"].significant and not by["depth_hardening"].significant
+    assert [p.effects for p in pairs] == [("joint_friction", "depth_hardening")]
+    out = [r.effect for r in contenders_for(stats, [], set(), 1, pairs)]
+    assert out == ["joint_friction", "depth_hardening"]
+    # with room for two significant contenders the partner comes after them
+    out = [r.effect for r in contenders_for(stats, [], set(), 2, pairs)]
+    assert out == ["joint_friction", "inertial_drag", "depth_hardening"]
+    # without the pairs the old rule: significant candidates only
+    out = [r.effect for r in contenders_for(stats, [], set(), 2, ())]
+    assert out == ["joint_friction", "inertial_drag"]
+
+
+def test_partner_order_in_the_pair_does_not_matter():
+    stats, pairs = _split_screening()
+    flipped = [IndistinguishablePair(p.effects[::-1], p.correlation,
+                                     p.heldout_error_reduction, p.experiment) for p in pairs]
+    out = [r.effect for r in contenders_for(stats, [], set(), 1, flipped)]
+    assert out == ["joint_friction", "depth_hardening"]
+
+
+def test_only_the_leading_contenders_partner_is_added():
+    stats, _ = _split_screening()
+    pairs = [IndistinguishablePair(("inertial_drag", "cohesion"), 0.95, (0.2, 0.0), "")]
+    out = [r.effect for r in contenders_for(stats, [], set(), 2, pairs)]
+    assert out == ["joint_friction", "inertial_drag"]
+    # once the leader is rejected, inertial drag leads and its partner is refined
+    out = [r.effect for r in contenders_for(stats, [], {"joint_friction"}, 2, pairs)]
+    assert out == ["inertial_drag", "cohesion"]
+
+
+def test_nothing_is_refined_without_a_significant_leader():
+    rows = [_row("joint_friction", 0.40, 0.3), _row("depth_hardening", 0.35, 0.1)]
+    stats = _stats(rows)
+    assert not any(r.significant for r in stats)
+    pairs = [IndistinguishablePair(("joint_friction", "depth_hardening"), 0.95, (0.4, 0.35),
+                                   "")]
+    assert contenders_for(stats, [], set(), 2, pairs) == []
+
+
+def test_added_or_rejected_partners_are_not_refined_again():
+    stats, pairs = _split_screening()
+    out = [r.effect for r in contenders_for(stats, [], {"depth_hardening"}, 1, pairs)]
+    assert out == ["joint_friction"]
+    out = [r.effect for r in contenders_for(stats, ["depth_hardening"], set(), 1, pairs)]
+    assert out == ["joint_friction"]
