@@ -31,15 +31,13 @@ _SHARED: dict = {}
 
 
 def _run_chunk(task: tuple) -> list:
+    """A chunk whose variant the forked worker inherited (``_SHARED["variants"]``)."""
     kind, vkey, indices = task
-    model = _SHARED["model"]
-    windows = _SHARED["windows"]
-    variant = _SHARED["variants"][vkey]
-    fn = REPLAYERS[kind]
-    return [(vkey, i, fn(model, windows[i], variant)) for i in indices]
+    return _run_sent_chunk((kind, vkey, _SHARED["variants"][vkey], indices))
 
 
 def _run_sent_chunk(task: tuple) -> list:
+    """A chunk whose variant was sent with the task."""
     kind, vkey, variant, indices = task
     model = _SHARED["model"]
     windows = _SHARED["windows"]
