@@ -9,8 +9,10 @@ the rigid-ground MPC-WBC, 20 s); (2) replay its joint references with
 torques — on rigid ground, on the paper's track and on dry sand; (3) the same torque replay
 on rigid ground on the other plant (reference instead of compiled: the same physics, a
 last-bit difference), to measure how fast an open-loop replay leaves its recording.
-Prints, per case, ``fall_s_<case>`` (20 = walked the whole run), ``mean_speed_<case>`` and,
-for (3), when the replay's joint angles first differ from the recording's by 1 mm / 1 mrad.
+Prints, per case and speed, ``fall_<case>_<v>_s`` (the fall time; the run's duration when it
+walked the whole run), ``mean_speed_<case>_<v>_mps``, ``peak_sinkage_<case>_<v>_mm`` and,
+for (3), ``torque_replay_leaves_recording_<v>_s``: when the replay's joint angles or trunk
+position first differ from the recording's by more than 1 mm / 1 mrad.
 """
 
 from __future__ import annotations
@@ -62,12 +64,12 @@ def main() -> None:
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
     figures: dict = {}
-    units: dict = {"_s": "s", "mean_speed": "m/s", "_mm": "mm"}
+    units: dict = {"_s": "s", "_mps": "m/s", "_mm": "mm"}
     for v in args.speeds:
         rec = args.out / f"record_{v:g}"
         s = run("sim/paper_protocol.yaml", rec, ["terrain=rigid", f"command.speed={v}"])
-        figures[f"record_fall_s_{v:g}"] = s["fall_time_s"] if s["fell"] else s["sim_time_s"]
-        figures[f"record_mean_speed_{v:g}"] = s["mean_speed_mps"]
+        figures[f"fall_record_{v:g}_s"] = s["fall_time_s"] if s["fell"] else s["sim_time_s"]
+        figures[f"mean_speed_record_{v:g}_mps"] = s["mean_speed_mps"]
         for name, (terrain, kp, kd, ff, plant) in CASES.items():
             over = [f"playback.reference={rec}", f"terrain={terrain}", f"playback.kp={kp}",
                     f"playback.kd={kd}", f"playback.feedforward={str(ff).lower()}"]
@@ -76,12 +78,12 @@ def main() -> None:
             if plant:
                 over.append(f"sim.plant={plant}")
             s = run("sim/paper_playback.yaml", args.out / f"{name}_{v:g}", over)
-            figures[f"fall_s_{name}_{v:g}"] = s["fall_time_s"] if s["fell"] else s["sim_time_s"]
-            figures[f"mean_speed_{name}_{v:g}"] = s["mean_speed_mps"]
+            figures[f"fall_{name}_{v:g}_s"] = s["fall_time_s"] if s["fell"] else s["sim_time_s"]
+            figures[f"mean_speed_{name}_{v:g}_mps"] = s["mean_speed_mps"]
             figures[f"peak_sinkage_{name}_{v:g}_mm"] = s["sinkage_peak_mm_mean"]
             print(f"# {v:g} m/s {name}: {'falls at %.3f s' % s['fall_time_s'] if s['fell'] else 'walks'}",
                   flush=True)
-        figures[f"torque_replay_leaves_recording_s_{v:g}"] = divergence_s(
+        figures[f"torque_replay_leaves_recording_{v:g}_s"] = divergence_s(
             args.out / f"rigid_pd150_ff_{v:g}", args.out / f"rigid_pd150_ff_reference_plant_{v:g}")
     emit(figures, args.json, units)
 
