@@ -159,7 +159,6 @@ class PlantRecorder:
         taucols = joint_columns(biped.joint_names, "tau")
         # the joint columns interleaved per joint (q, dq, τ), the row's column order
         self._joint_cols = tuple(c for i in range(nj) for c in (qcols[i], dqcols[i], taucols[i]))
-        self._joint_buf = np.empty((nj, 3))
         # per foot: (grf, intrusion, contact point) column per axis, then the scalars
         self._foot = [(tuple(c for ax in AXES for c in (foot_column(side, f"grf_{ax}"),
                                                          foot_column(side, f"intrusion_{ax}"),
@@ -181,6 +180,19 @@ class PlantRecorder:
                          + (STANCE,) + tuple(c for c, _ in self._none_cols)
                          + tuple(self._com_cols))
         self._none_values = tuple(v for _, v in self._none_cols)
+        # one gather from [q, v, τ, R·v_lin, c, ċ] (sizes nq, nv, nv, 3, 3, 3) gives, in row
+        # order, the joint block (per joint q, dq, τ), the base (position, quaternion
+        # (w, x, y, z) from q's (x, y, z, w), linear velocity in W, angular velocity in B)
+        # and the CoM block: the values the row had element by element
+        nq, nv = biped.model.nq, biped.model.nv
+        o_v, o_tau, o_rv = nq, nq + nv, nq + 2 * nv
+        o_com = o_rv + 3
+        take = [k for i in range(nj) for k in (int(biped.idx_q[i]), o_v + int(biped.idx_v[i]),
+                                               o_tau + int(biped.idx_v[i]))]
+        take += [0, 1, 2, 6, 3, 4, 5, o_rv, o_rv + 1, o_rv + 2, o_v + 3, o_v + 4, o_v + 5]
+        self._n_head = len(take)
+        take += list(range(o_com, o_com + 6))
+        self._take = np.array(take, dtype=np.intp)
 
     def row(self, d, *, stance: str | None = None, extra: Mapping[str, Any] | None = None) -> dict:
         """Row for plant data ``d``; ``stance`` defaults to the foot in contact (the one
@@ -192,24 +204,20 @@ class PlantRecorder:
         for ``contact``), filled from whole arrays at once (one ``tolist`` per block)."""
         b = self.biped
         q, v = d.q, d.v
-        jb = self._joint_buf
-        jb[:, 0] = q[b.idx_q]
-        jb[:, 1] = v[b.idx_v]
-        jb[:, 2] = d.tau[b.idx_v]
-        # the values in the column order of self._head (time, joints, base, both feet,
-        # stance), collected in one list and zipped once
-        vals: list = [d.t]
-        vals += jb.ravel().tolist()
+        pdata = self._pdata
         # the CoM pass runs the forward kinematics: the free flyer's placement is the
         # trunk's rotation, the same numbers as matrix_from_quat_xyzw(q[3:7]) bit for bit
-        pin.centerOfMass(b.model, self._pdata, q, v)
-        R = (np.ascontiguousarray(self._pdata.oMi[1].rotation) if self._free_flyer
+        pin.centerOfMass(b.model, pdata, q, v)
+        R = (np.ascontiguousarray(pdata.oMi[1].rotation) if self._free_flyer
              else matrix_from_quat_xyzw(q[3:7]))
-        # position, quaternion (w, x, y, z), linear velocity (W), angular velocity (B)
-        ql = q[0:7].tolist()
-        vals += (ql[0], ql[1], ql[2], ql[6], ql[3], ql[4], ql[5])
-        vals += (R @ v[0:3]).tolist()
-        vals += v[3:6].tolist()
+        # joints, base and CoM values in row order from one gather (see __init__)
+        flat = np.concatenate((q, v, d.tau, R @ v[0:3], pdata.com[0], pdata.vcom[0]))
+        gathered = flat[self._take].tolist()
+        n_head = self._n_head
+        # the values in column order (time, joints, base, both feet, stance, the stance
+        # foot's copies, CoM), collected in one list and zipped once
+        vals: list = [d.t]
+        vals += gathered[:n_head]
         fz = []
         copies = []     # per foot: its (grf, intrusion) per axis, the stance columns' values
         for i in range(2):
@@ -230,9 +238,7 @@ class PlantRecorder:
             stance = "none" if max(fz) == -np.inf else SIDES[int(np.argmax(fz))]
         vals.append(stance)
         vals += copies[SIDES.index(stance)] if stance != "none" else self._none_values
-        c, vc = self._pdata.com[0], self._pdata.vcom[0]
-        vals += c.tolist()
-        vals += vc.tolist()
+        vals += gathered[n_head:]
         row: dict[str, Any] = dict(zip(self._columns, vals))
         if extra:
             row.update(extra)

@@ -222,9 +222,11 @@ class WalkingController:
             psi = min(max(math.atan2(-xz, zz), -half), half)
             s_, c_ = R_arc * math.sin(psi), -R_arc * math.cos(psi)
             ax, ay, az = s_ * xx + c_ * zx, s_ * xy + c_ * zy, s_ * xz + c_ * zz
-            pts = np.array([((px + y * yx) + ax, (py + y * yy) + ay, (pz + y * yz) + az)
-                            for y in ys])
-            out.append(FootPoints(pts, pts - p))
+            pts = [((px + y * yx) + ax, (py + y * yy) + ay, (pz + y * yz) + az) for y in ys]
+            # the points and their offsets from p (per component, the numbers of
+            # ``pts - p``) as one (2, n, 3) array: two contiguous halves
+            both = np.array((pts, [(x - px, y - py, z - pz) for x, y, z in pts]))
+            out.append(FootPoints(both[0], both[1]))
         return out[0], out[1]
 
     @cached_property
@@ -248,7 +250,9 @@ class WalkingController:
 
     def _depth(self, fp: FootPoints) -> float:
         """Depth of a foot's lowest points below the surface [m]."""
-        return float(self.ground.surface_height - fp.points[:, 2].sum() / len(fp.points))
+        # ndarray.sum's reduction called directly (the same sum, without its wrapper)
+        return float(self.ground.surface_height
+                     - np.add.reduce(fp.points[:, 2], None) / len(fp.points))
 
     def _force_cap_now(self, feet) -> np.ndarray:
         """Normal force each foot may carry now [N]: the capacity at its depth plus the
@@ -305,13 +309,14 @@ class WalkingController:
             lim = fh.max_speed_correction / max(fh.k_speed_integral, 1e-9)
             d.speed_integral = float(min(max(d.speed_integral, -lim), lim))
         d.last_t = t
-        v_step = v_cmd.copy()
-        v_step[0] += fh.k_speed_integral * d.speed_integral
+        # the command with the integral's correction on x (v_cmd's copy with [0] increased)
+        v_step = np.array((v_ref[0] + fh.k_speed_integral * d.speed_integral, v_ref[1], 0.0))
         y_line = d.origin[1] + p_ref[1]
         yaw_ref = d.origin[2]
         # footholds of swinging feet (sole points) for their next touchdown, from the DCM
         omega = self.omega
-        dcm = com[:2] + vcom[:2] / omega
+        # c + ċ/ω per component (the array form's numbers)
+        dcm = np.array((com[0] + vcom[0] / omega, com[1] + vcom[1] / omega))
         st_feet = [i for i in range(2) if stance[i]]
         p_st = (_mean_point(feet[st_feet[0]].points)[:2] if len(st_feet) == 1
                 else 0.5 * (_mean_point(feet[0].points)[:2] + _mean_point(feet[1].points)[:2]))
@@ -354,7 +359,10 @@ class WalkingController:
         s = min(max((t - plan.t) / dt, 0.0), float(N))
         k0 = min(int(s), N - 1)
         xs = plan.states[k0]
-        com_ref = xs[3:6] + (s - k0 - 1.0) * dt * xs[9:12]
+        # per component: xs[3:6] + ((s − k0 − 1)·dt)·xs[9:12], the array form's numbers
+        (x3, x4, x5), (x9, x10, x11) = xs[3:6].tolist(), xs[9:12].tolist()
+        lead = (s - k0 - 1.0) * dt
+        com_ref = np.array((x3 + lead * x9, x4 + lead * x10, x5 + lead * x11))
         com_vel_ref = xs[9:12]
         f_tot = np.add.reduce(forces, axis=(0, 1))     # forces.sum(axis=(0, 1))
         mass, g_vec = self._mass_gravity
@@ -362,7 +370,12 @@ class WalkingController:
         sink_accel = np.zeros(2)
         if self.ground.granular and N >= 3:
             k1, k2 = min(k + 1, N - 1), min(k + 2, N - 1)
-            sink_accel = (plan.sinkage[k2] - 2.0 * plan.sinkage[k1] + plan.sinkage[k]) / dt ** 2
+            # per foot: (z[k2] − 2 z[k1] + z[k]) / dt², the array form's numbers
+            (a0, a1), (b0, b1), (c0, c1) = (plan.sinkage[k2].tolist(),
+                                            plan.sinkage[k1].tolist(),
+                                            plan.sinkage[k].tolist())
+            dt2 = dt ** 2
+            sink_accel = np.array(((a0 - 2.0 * b0 + c0) / dt2, (a1 - 2.0 * b1 + c1) / dt2))
         # swing references (foot-frame origin = sole point + R up)
         Rarc = b.config.foot.radius
         sp, sv, sa = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3))
@@ -420,15 +433,17 @@ class WalkingController:
         dblend = 0.5 * math.pi / T * math.sin(math.pi * s) if T > 0 else 0.0
         e = math.exp(self.omega * 0.5 * self.schedule.period)
         shift = 0.5 * self.step_width * (e - 1.0) / (e + 1.0)   # w/2 − c
-        y_l = feet[0].points[:, 1].mean()
-        y_r = feet[1].points[:, 1].mean()
+        # ndarray.mean's arithmetic (the sum, divided by n) without its Python wrapper
+        y_l = np.add.reduce(feet[0].points[:, 1], None) / len(feet[0].points)
+        y_r = np.add.reduce(feet[1].points[:, 1], None) / len(feet[1].points)
         mid = 0.5 * (y_l + y_r)
         target = np.array([d.origin[0], mid + shift * np.sign(y_l - y_r),
                            self.ground.surface_height + self.com_height_ref])
         start = np.array([d.origin[0], d.origin[1], target[2]])
         com_ref = start + blend * (target - start)
         com_vel = dblend * (target - start)
-        share_l = float(np.clip((com_ref[1] - y_r) / max(y_l - y_r, 1e-6), 0.0, 1.0))
+        # np.clip's number on a scalar (lo ≤ hi, NaN kept) as min(max(·))
+        share_l = float(min(max((com_ref[1] - y_r) / max(y_l - y_r, 1e-6), 0.0), 1.0))
         forces = np.zeros((2, self.mpc.n_points, 3))
         forces[0, :, 2] = share_l * b.weight / self.mpc.n_points
         forces[1, :, 2] = (1.0 - share_l) * b.weight / self.mpc.n_points

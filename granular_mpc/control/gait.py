@@ -202,12 +202,21 @@ def predict_com(com: np.ndarray, vcom: np.ndarray, p_stance: np.ndarray, omega: 
                 dt: float) -> np.ndarray:
     """Horizontal CoM after ``dt`` [s] of stance on ``p_stance`` (linear inverted pendulum)."""
     ch, sh = math.cosh(omega * dt), math.sinh(omega * dt)
-    return p_stance + (com - p_stance) * ch + vcom / omega * sh
+    # per component on Python floats: the IEEE operations of the array form
+    # p + (c − p)·ch + (v/ω)·sh without NumPy's per-call cost
+    px, py = p_stance[0], p_stance[1]
+    cx, cy = com[0], com[1]
+    vx, vy = vcom[0], vcom[1]
+    return np.array((float(px + (cx - px) * ch + vx / omega * sh),
+                     float(py + (cy - py) * ch + vy / omega * sh)))
 
 
 def predict_dcm(dcm: np.ndarray, p_stance: np.ndarray, omega: float, dt: float) -> np.ndarray:
     """DCM after ``dt`` [s] of stance on ``p_stance`` (LIP): ``p + (ξ − p) e^{ω dt}``."""
-    return p_stance + (dcm - p_stance) * math.exp(omega * dt)
+    e = math.exp(omega * dt)
+    # per component on Python floats (the array form's IEEE operations)
+    px, py = p_stance[0], p_stance[1]
+    return np.array((float(px + (dcm[0] - px) * e), float(py + (dcm[1] - py) * e)))
 
 
 __all__ = ["GaitSchedule", "CommandRamp", "foothold", "predict_dcm", "predict_com", "LEFT", "RIGHT"]

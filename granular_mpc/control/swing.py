@@ -24,17 +24,18 @@ def cycloid(p0: np.ndarray, p1: np.ndarray, height: float, phase: float,
     s = min(max(phase, 0.0), 1.0)
     phi = 2.0 * math.pi * s
     w = 2.0 * math.pi / duration          # dφ/dt
-    c = (phi - math.sin(phi)) / (2.0 * math.pi)
-    dc = (1.0 - math.cos(phi)) / (2.0 * math.pi) * w
-    ddc = math.sin(phi) / (2.0 * math.pi) * w * w
-    delta = p1 - p0
-    pos = p0 + delta * c
-    vel = delta * dc
-    acc = delta * ddc
-    pos[2] += height * (1.0 - math.cos(phi)) / 2.0
-    vel[2] += height * math.sin(phi) / 2.0 * w
-    acc[2] += height * math.cos(phi) / 2.0 * w * w
+    sin_phi, cos_phi = math.sin(phi), math.cos(phi)
+    c = (phi - sin_phi) / (2.0 * math.pi)
+    dc = (1.0 - cos_phi) / (2.0 * math.pi) * w
+    ddc = sin_phi / (2.0 * math.pi) * w * w
+    # per component on Python floats: the IEEE operations of the array form
+    # (p0 + Δ·c, Δ·ċ, Δ·c̈, then the height terms added to z) without NumPy's per-call cost
+    (x0, y0, z0), (x1, y1, z1) = p0.tolist(), p1.tolist()
+    dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
+    pos = np.array((x0 + dx * c, y0 + dy * c,
+                    (z0 + dz * c) + height * (1.0 - cos_phi) / 2.0))
+    vel = np.array((dx * dc, dy * dc, dz * dc + height * sin_phi / 2.0 * w))
+    acc = np.array((dx * ddc, dy * ddc, dz * ddc + height * cos_phi / 2.0 * w * w))
     return pos, vel, acc
-
 
 __all__ = ["cycloid"]

@@ -112,6 +112,9 @@ class WBCWork:
     diag_nv: np.ndarray         # indices of the q̈ block's diagonal
     diag_f: np.ndarray          # indices of the force block's diagonal (in H)
     lower: tuple                # indices of the strict lower triangle of M
+    problem: QPProblem | None = None    # the QP over the arrays above (made once)
+    C_tau_q: np.ndarray | None = None   # view of C's torque rows' q̈ block, M_a (6, nv)
+    C_tau_f: np.ndarray | None = None   # view of C's torque rows' force block, −J_aᵀ
 
 
 @dataclass
@@ -212,14 +215,18 @@ class WholeBodyController:
         nr = poly.G.shape[0]
         rows = 3 + 3 + 2 * nps * 3          # orientation, CoM, both feet's contact points
         C = np.zeros((n_in, n))
-        return WBCWork(
+        w = WBCWork(
             H=np.zeros((n, n)), g=np.zeros(n), A=np.zeros((6, n)), b=np.zeros(6), C=C,
             C_poly=C[6:, nv:].reshape(2 * nps, nr, 2 * nps, 3),
             l=np.full(n_in, -BIG), u=np.zeros(n_in), lb=np.full(n, -BIG), ub=np.full(n, BIG),
             J=np.zeros((rows, nv)), e=np.zeros(rows), w=np.zeros(rows),
             sw=np.sqrt(np.asarray(self.config.w_orientation, dtype=float)),
             h_point=poly.h, f_max_point=poly.f_max,
-            diag_nv=np.arange(nv), diag_f=np.arange(nv, n), lower=np.tril_indices(nv, -1))
+            diag_nv=np.arange(nv), diag_f=np.arange(nv, n), lower=np.tril_indices(nv, -1),
+            C_tau_q=C[:6, :nv], C_tau_f=C[:6, nv:])
+        # every tick refills these arrays in place: one problem object over them
+        w.problem = QPProblem(w.H, w.g, w.A, w.b, w.C, w.l, w.u, w.lb, w.ub)
+        return w
 
     # ------------------------------------------------------------------ the tick
     def solve(self, data: WBCData, q: np.ndarray, v: np.ndarray, ref: WBCReference,
@@ -233,14 +240,16 @@ class WholeBodyController:
         if data.assembly is not None and not data.keep_residuals:
             h_a = self._assemble_compiled(data, q, v, ref, feet)
             Jt = et = names = None
-            # C's first rows are [M_a, −J_aᵀ]: τ = M_a q̈ + h_a − J_aᵀ f
-            M_a, JT_a = w.C[:6, :nv], -w.C[:6, nv:]
+            # C's first rows are [M_a, −J_aᵀ]: τ = M_a q̈ + h_a − J_aᵀ f, computed as
+            # M_a q̈ + h_a + (−J_aᵀ) f (the same numbers: negating a product or a sum is
+            # exact in IEEE arithmetic) on views made once
+            M_a, mJT_a = w.C_tau_q, w.C_tau_f
         else:
             h_a, Jt, et, names, M_a, JT_a = self._assemble_numpy(data, q, v, ref, feet)
-        H, g, C, l, u, lb, ub = w.H, w.g, w.C, w.l, w.u, w.lb, w.ub
+            mJT_a = None
         tau_min, tau_max, actuator_rows = self._torque_bounds
         t0 = time.perf_counter()
-        sol = data.solver.solve(QPProblem(H, g, w.A, w.b, C, l, u, lb, ub))
+        sol = data.solver.solve(w.problem)
         data.last_ms = (time.perf_counter() - t0) * 1e3
         data.solves += 1
         data.last_status = sol.status
@@ -249,12 +258,17 @@ class WholeBodyController:
             if data.keep_residuals:
                 res = Jt @ x[:nv] + et
                 data.extra["task_residuals"] = {k: res[r0:r1] for k, r0, r1 in names}
-            tau = M_a @ x[:nv] + h_a - JT_a @ x[nv:]
+            if mJT_a is not None:
+                tau = M_a @ x[:nv] + h_a + mJT_a @ x[nv:]
+            else:
+                tau = M_a @ x[:nv] + h_a - JT_a @ x[nv:]
         else:
             data.failures += 1
             # fall back: the previous torques if any, else gravity/force feed-forward
             if data.last_tau is not None:
                 tau = data.last_tau.copy()
+            elif mJT_a is not None:
+                tau = h_a + mJT_a @ ref.forces.reshape(-1)
             else:
                 tau = h_a - JT_a @ ref.forces.reshape(-1)
         tau = np.minimum(np.maximum(tau, tau_min), tau_max)

@@ -180,6 +180,7 @@ class FastPlantData:
         L = data.layout
         # views into the compiled state (updated in place by every call)
         self._states = data.x[L.contact].reshape(2, L.n_patches, L.patch_state)
+        self._contact_flags = self._states[:, :, 6]     # per foot and patch: in contact
         self._evaluated = (AUX_SLICES[0, "evaluated"].start, AUX_SLICES[1, "evaluated"].start)
         self._point_sl = (AUX_SLICES[0, "point"], AUX_SLICES[1, "point"])
 
@@ -237,11 +238,16 @@ class FastPlantData:
         return self._point[foot].copy()
 
     def foot_in_contact(self, foot: int) -> bool:
-        return bool(self._states[foot, :, 6].max() > 0.5)
+        # ndarray.max's reduction called directly (without its Python wrapper)
+        return bool(_max_reduce(self._contact_flags[foot], None) > 0.5)
 
     def foot_diag(self, foot: int) -> np.ndarray:
         """Mean over the foot's patches of (depth, f_cap_z, x_s, y_s, z_s, ψ_c)."""
         return aux_foot(self.data.aux, foot, "diag").copy()
+
+
+#: the reduction :meth:`FastPlantData.foot_in_contact` calls directly
+_max_reduce = np.maximum.reduce
 
 
 __all__ = ["FastPlant", "FastPlantData", "ContactView", "FootContactView"]

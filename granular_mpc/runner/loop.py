@@ -137,8 +137,9 @@ def _step_rows(sim: Simulation, state: LoopState | None) -> Iterator[dict]:
         last = k >= n_steps
         fall_row = False
         if k % sim.control_every == 0 and not last:
+            q = pd.q        # a copy (read once: the plant does not step until after the row)
             if walk:
-                tau = ctrl.compute(cd, t, pd.q, pd.v)
+                tau = ctrl.compute(cd, t, q, pd.v)
             elif sim.playback is not None:
                 tau = sim.playback.torque(t, pd.q[sim.biped.idx_q], pd.v[sim.biped.idx_v])
             else:
@@ -147,7 +148,7 @@ def _step_rows(sim: Simulation, state: LoopState | None) -> Iterator[dict]:
                 tau = np.clip(kp * (q_hold - qa) - kd * dqa, -tau_max, tau_max)
             pd.set_torque(tau)
             if fall_cfg.enabled and (walk or sim.playback is not None) and st.fall is None:
-                why = check_fall(sim, pd.q)
+                why = check_fall(sim, q)
                 if why is not None:
                     st.fall = FallEvent(t, why)
                     fall_row = True
@@ -163,14 +164,14 @@ def _step_rows(sim: Simulation, state: LoopState | None) -> Iterator[dict]:
         if k % sim.log_every == 0 or fall_row or last:
             extra: dict[str, Any]
             if walk:
+                # one dict display: the same keys, order and values as the former
+                # dict + update(solver_columns) + update(push) calls
                 _, v_ref, _ = cd.ramp.reference(t)
-                extra = {"cmd_vx": float(v_ref[0]), "cmd_vy": float(v_ref[1])}
-                extra.update(solver_columns(cd))
-                if active is not None:
-                    extra.update(push_fx=float(active.wrench[0]), push_fy=float(active.wrench[1]),
-                                 push_fz=float(active.wrench[2]))
-                else:
-                    extra.update(zero_push)
+                fx, fy, fz = ((float(active.wrench[0]), float(active.wrench[1]),
+                               float(active.wrench[2])) if active is not None
+                              else (0.0, 0.0, 0.0))
+                extra = {"cmd_vx": float(v_ref[0]), "cmd_vy": float(v_ref[1]),
+                         **solver_columns(cd), "push_fx": fx, "push_fy": fy, "push_fz": fz}
                 stance = planned_stance(ctrl.schedule, t)
             else:
                 extra = zero_push
