@@ -63,6 +63,8 @@ LIBRARY = ["inertial_drag", "cohesion", "depth_hardening", "elastic_unloading",
 SPEEDS = (0.15, 0.25, 0.35)
 HIDDEN, USER = "ool_", "user_"
 PROPOSED = "proposed_force"
+#: every effect a proposal file registers (force, joint, torque sensor) starts so
+PROPOSED_PREFIX = "proposed_"
 
 
 def _tanh(o, x):
@@ -337,6 +339,7 @@ def run_case(case: Case, root: Path, steps: int, n_boot: int, user_terms: bool,
     measurement-model family), then with the proposal fed back."""
     from granular_mpc.effects.measurement import MEASUREMENT
     from granular_mpc.validation.diagnose import diagnose
+    from granular_mpc.validation.diagnosis.proposal import proposed_effects
     from granular_mpc.validation.synth import noisy_copy, synthesize
 
     register_forms()
@@ -356,9 +359,14 @@ def run_case(case: Case, root: Path, steps: int, n_boot: int, user_terms: bool,
     prop = lib.proposal
     row["proposal"] = ({"file": prop.file, "pointed_to": prop.pointed_to,
                         "terms": {f"{t.axis}:{t.feature}": t.coefficient_patch
-                                  for t in prop.terms}} if prop is not None else None)
+                                  for t in prop.terms},
+                        # joint-axis terms (joint_proposal.py): "joint:<name>:<feature>"
+                        "joint_terms": {f"joint:{t.joint}:{t.feature}": t.coefficient
+                                        for t in prop.joint_terms}}
+                       if prop is not None else None)
     files = [str(lib.out_dir / prop.file)] if prop is not None and prop.file else []
-    cands = library + ([PROPOSED] if files else [])
+    # the file registers the force proposal and/or the joint-axis ones (proposal.py)
+    cands = library + (list(proposed_effects(prop)) if files else [])
     if user_terms and case.form:
         cands.append(FORM_BY_NAME[case.form].user)
     row["fb"] = None
@@ -407,7 +415,8 @@ def score(row: dict) -> dict:
     out = {"channel": ch, "lib_red": _reduction(lib, ch), "fb_red": _reduction(fb, ch)}
     form = FORM_BY_NAME.get(case.form)
     found_name = ""
-    if fb and fb["rank1_added"] and fb["rank1"] in (PROPOSED, form.user if form else ""):
+    if fb and fb["rank1_added"] and (fb["rank1"].startswith(PROPOSED_PREFIX)
+                                     or fb["rank1"] == (form.user if form else "")):
         found_name = fb["rank1"]
     out["found"] = bool(found_name) and (out["fb_red"] or 0.0) >= 0.5
     out["found_term"] = found_name
@@ -509,7 +518,7 @@ def _proposed(prop: dict | None) -> str:
     if not prop or not prop["file"]:
         return "-"
     axes: dict[str, list[str]] = {}
-    for k in prop["terms"]:
+    for k in list(prop["terms"]) + list(prop.get("joint_terms", {})):
         ax, feat = k.split(":", 1)
         axes.setdefault(ax, []).append(feat)
     return "; ".join(f"{ax}: " + " ".join(f) for ax, f in axes.items())

@@ -20,7 +20,9 @@ from typing import Mapping
 
 import numpy as np
 
+from ..dataformat import load_dataset
 from .features import AXES, FEATURES, force_samples
+from .joint_proposal import joint_effect_names, joint_effect_source, propose_joint_terms
 from .problem import Problem
 from .proposal_records import AxisFit, Proposal, ProposedTerm
 from .result import Verdict
@@ -48,13 +50,22 @@ NOTE = ("equation error of the foot force on the sinking samples (measured − t
 
 
 def propose_terms(problem: Problem, theta: Mapping[str, float], *, seed: int = 0) -> Proposal:
-    """Fit the missing force on the feature library.
+    """Fit the missing force on the feature library, and the joint torque equation error
+    on the joint features (:mod:`.joint_proposal`).
 
     Args:
         problem: the diagnosis problem.
         theta: the calibrated parameters (``zeta``; ``phi_s`` if calibrated).
         seed: seed of the stability resamples.
     """
+    p = _force_proposal(problem, theta, seed=seed)
+    jt, jf, jnote = propose_joint_terms(load_dataset(problem.data_dir), problem.biped,
+                                        problem.sample_rate_hz, seed=seed)
+    return replace(p, joint_terms=jt, joint_fits=jf, joint_note=jnote)
+
+
+def _force_proposal(problem: Problem, theta: Mapping[str, float], *, seed: int = 0) -> Proposal:
+    """The foot-force part of :func:`propose_terms`."""
     n_slices = int(problem.biped.config.foot.slices)
     fs = force_samples(problem.windows, problem.replay_model.terrain, theta, n_slices=n_slices)
     n_st = int(np.unique(fs.window).size) if fs.n else 0
@@ -146,12 +157,28 @@ def effect_source(p: Proposal, data: str = "") -> str:
               + ", ".join(f"{_param_name(t)!r}: 0.0" for t in terms) + "}, depends_on=("
               + ", ".join(repr(feature(t.feature).description) for t in terms)
               + ("," if len(terms) == 1 else "") + "))", ""]
-    return "\n".join(lines)
+    if not terms:          # only joint-axis terms: no terrain force is registered
+        lines = lines[:lines.index("from granular_mpc.effects import Param, describe_effect, "
+                                   "register_effect")]
+    return "\n".join(lines) + joint_effect_source(p.joint_terms, p.joint_fits,
+                                                  _joint_names(p))
+
+
+def _joint_names(p: Proposal) -> tuple[str, ...]:
+    return tuple(f.joint for f in p.joint_fits)
+
+
+def proposed_effects(p: Proposal | None) -> tuple[str, ...]:
+    """The effects the proposal's file registers (force, joint, torque sensor)."""
+    if p is None:
+        return ()
+    force = (p.effect,) if any(t.expressible for t in p.terms) else ()
+    return force + joint_effect_names(p.joint_terms)
 
 
 def write_proposal(out_dir: Path, p: Proposal, data: str = "") -> Proposal:
     """Write the effect file into ``out_dir`` (when anything expressible is proposed)."""
-    if not any(t.expressible for t in p.terms):
+    if not proposed_effects(p):
         return p
     path = Path(out_dir) / PROPOSAL_FILE
     path.write_text(effect_source(p, data), encoding="utf-8")
@@ -162,10 +189,13 @@ def proposal_sentence(p: Proposal | None) -> str:
     """One sentence pointing to the proposal (empty: none)."""
     if p is None or not p.file:
         return ""
-    red = max((a.heldout_error_reduction_selected for a in p.axes if a.proposed), default=math.nan)
-    names = ", ".join(f"{t.axis}:{t.feature}" for t in p.terms if t.expressible)
+    red = max([a.heldout_error_reduction_selected for a in p.axes if a.proposed]
+              + [f.heldout_error_reduction_selected for f in p.joint_fits if f.proposed],
+              default=math.nan)
+    names = ", ".join([f"{t.axis}:{t.feature}" for t in p.terms if t.expressible]
+                      + [f"{t.joint}:{t.feature}" for t in p.joint_terms])
     return (f"A term outside the library is proposed in {p.file} ({names}; held-out foot-force "
-            f"equation error −{100 * red:.0f} %): read it, then pass it back with "
+            f"or joint-torque equation error −{100 * red:.0f} %): read it, then pass it back with "
             f"--effect-file {p.file}")
 
 
@@ -189,5 +219,5 @@ def pointed_proposal(verdict: Verdict, best_candidate: str, p: Proposal | None,
     return replace(verdict, text=f"{verdict.text}. {sentence}"), replace(p, pointed_to=True)
 
 
-__all__ = ["pointed_proposal", "POINTING_VERDICTS", "propose_terms", "effect_source", "write_proposal", "proposal_sentence",
+__all__ = ["proposed_effects", "pointed_proposal", "POINTING_VERDICTS", "propose_terms", "effect_source", "write_proposal", "proposal_sentence",
            "PROPOSED_EFFECT", "PROPOSAL_FILE", "MIN_PROPOSAL_REDUCTION"]

@@ -58,6 +58,48 @@ class AxisFit(Record):
 
 
 @dataclass(frozen=True)
+class JointTerm(Record):
+    """One selected feature of a proposed joint torque or torque-sensor term.
+
+    Attributes:
+        joint: the actuated joint (actuator order name).
+        feature: ``const``, ``q``, ``dq``, ``sign_dq`` (joint effect) or ``tau``
+            (torque-sensor gain: a sensor effect).
+        coefficient: N·m per feature unit (``tau``: dimensionless, on the measured torque).
+        std_error: its standard error (OLS on the selected features).
+        unit: the coefficient's unit.
+        selection_frequency: share of the stability resamples that selected it.
+    """
+
+    joint: str
+    feature: str
+    coefficient: float
+    std_error: float
+    unit: str
+    selection_frequency: float
+
+
+@dataclass(frozen=True)
+class JointFit(Record):
+    """The sparse fit of one joint's torque equation error.
+
+    Attributes:
+        joint: the actuated joint.
+        heldout_error_reduction, heldout_error_reduction_selected: as :class:`AxisFit`.
+        rms_before, rms_after: in-sample RMS equation error [N·m] (nuisance fitted; with
+            the terms).
+        proposed: whether this joint contributes terms.
+    """
+
+    joint: str
+    heldout_error_reduction: float
+    heldout_error_reduction_selected: float
+    rms_before: float
+    rms_after: float
+    proposed: bool
+
+
+@dataclass(frozen=True)
 class Proposal(Record):
     """A term proposed from the force equation error when no library term may fit.
 
@@ -69,6 +111,11 @@ class Proposal(Record):
         n_samples, n_stances: sinking samples and stances used.
         pointed_to: whether the verdict points the user to it.
         note: how it was found and what it is not.
+        not_expressible: selected force features a terrain force cannot read.
+        joint_terms: selected features of the joint-torque equation error
+            (:mod:`.joint_proposal`).
+        joint_fits: per joint, that fit's statistics.
+        joint_note: how the joint proposal was found (or why it was not available).
     """
 
     effect: str
@@ -80,11 +127,14 @@ class Proposal(Record):
     pointed_to: bool = False
     note: str = ""
     not_expressible: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
+    joint_terms: tuple[JointTerm, ...] = field(default=(), metadata=OMIT_EMPTY)
+    joint_fits: tuple[JointFit, ...] = field(default=(), metadata=OMIT_EMPTY)
+    joint_note: str = field(default="", metadata=OMIT_EMPTY)
 
     @property
     def proposed(self) -> bool:
-        """Whether any term is proposed."""
-        return bool(self.terms)
+        """Whether any term is proposed (foot force, joint torque or torque sensor)."""
+        return bool(self.terms) or bool(self.joint_terms)
 
 
-__all__ = ["ProposedTerm", "AxisFit", "Proposal"]
+__all__ = ["ProposedTerm", "AxisFit", "Proposal", "JointTerm", "JointFit"]

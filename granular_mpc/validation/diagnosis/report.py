@@ -13,6 +13,7 @@ from matplotlib.figure import Figure
 
 from ..prepare import channel_unit
 from .coverage import coverage_section
+from .joint_proposal import joint_report_lines
 from .localization_records import Localization
 from .proposal_records import Proposal
 from .ranking_records import Ranked
@@ -148,17 +149,18 @@ def proposal_section(p: Proposal | None) -> list[str]:
               f"(selection redone per fold −{100 * a.heldout_error_reduction:.0f} %), RMS "
               f"{a.rms_before:.2f} → {a.rms_after:.2f} N{'' if a.proposed else ' — nothing proposed'}"
               for a in p.axes]
+    joint = joint_report_lines(p.joint_terms, p.joint_fits, p.joint_note)
+    file_line = ["", f"Effect file: `{p.file}` — a hypothesis, not added; pass it back with "
+                     f"`--effect-file {p.file}` to have it refitted and judged."] if p.file else []
     if not p.terms:
-        return lines + [f"* nothing proposed ({p.n_samples} sinking samples)"]
+        return (lines + [f"* nothing proposed ({p.n_samples} sinking samples)"] + joint
+                + (file_line if p.joint_terms else []))
     lines += ["", "| axis | feature | coefficient (foot) | per patch | selected in |",
               "|---|---|---|---|---|"]
     lines += [f"| {t.axis} | {t.feature}: {t.description} | {t.coefficient_foot:.4g} ± "
               f"{t.std_error:.2g} {t.unit} | {t.coefficient_patch:.4g} | "
               f"{100 * t.selection_frequency:.0f} % |" for t in p.terms]
-    if p.file:
-        lines += ["", f"Effect file: `{p.file}` — a hypothesis, not added; pass it back with "
-                      f"`--effect-file {p.file}` to have it refitted and judged."]
-    return lines
+    return lines + joint + file_line
 
 
 def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
