@@ -295,6 +295,9 @@ def main() -> None:
                                        and abs(r["coef_err"]) <= 0.15),
         "heldout_reduction_ge_50pct_rate": rate(eff, lambda r: (r["heldout_red"] or 0) >= 0.5),
         "null_nothing_added_rate": rate(nul, lambda r: r["nothing_added"]),
+        # nothing missing, so no structure either (verdict no_significant_missing_effect)
+        "null_no_structure_rate": rate(nul, lambda r: r["status"]
+                                       == "no_significant_missing_effect"),
         "mismatch_calibrated_rate": rate(mis, lambda r: r["nothing_added"]
                                          and abs(r["coef_err"]) <= 0.10),
         "cases": len(eff), "null_cases": len(nul), "mismatch_cases": len(mis),

@@ -15,8 +15,9 @@ structure that flagged the missing effect must be explained (``docs/validation.m
   on the other side of the neutral value). Such a fit is reported with its flag and not
   added. Other parameters' flags are notes.
 * **Explained structure** (:func:`remaining_cells`): the major cells of the calibrated
-  model's localisation that are still major (|t| ≥ T_CELL, |bias| ≥ MAJOR_BIAS σ) after
-  the additions; any left → verdict ``partially_explained``.
+  model's localisation that are still major (|t| ≥ T_CELL, |bias| ≥ MAJOR_BIAS σ and ≥
+  the practical floor √(σ² + σ_meas²), :func:`.localise.practical_floor`) after the
+  additions; any left → verdict ``partially_explained``.
 """
 
 from __future__ import annotations

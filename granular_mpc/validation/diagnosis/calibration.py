@@ -18,6 +18,8 @@ ZETA_REL_STEP = 0.08
 PHI_S_STEP_RAD = math.radians(3.0)
 TOUCHDOWN_DEPTH_STEP_M = 5e-4
 TOUCHDOWN_DEPTH_BOUNDS_M = (-1e-3, 2e-3)
+#: the candidate name of the terrain-strength columns (keys ``strength.<param>``)
+STRENGTH = "strength"
 
 
 def nuisance_columns(theta: Mapping[str, float]) -> tuple[Column, ...]:
@@ -36,6 +38,17 @@ def nuisance_columns(theta: Mapping[str, float]) -> tuple[Column, ...]:
     return tuple(cols)
 
 
+def strength_columns(theta: Mapping[str, float], phi_s_rad: float) -> tuple[Column, ...]:
+    """The terrain strength's column when the calibration keeps φ_s fixed: φ_s [rad] at the
+    terrain file's value ``phi_s_rad``. Not a nuisance column of the regressions: the
+    screening uses it only to ask whether a candidate is a φ_s mismatch in disguise
+    (:mod:`.strength`). Empty when φ_s is calibrated (then it is a nuisance column)."""
+    if "phi_s" in theta:
+        return ()
+    plo, phi = CAL_PARAMS["phi_s"]
+    return (Column(STRENGTH, "phi_s", phi_s_rad, PHI_S_STEP_RAD, plo, phi, "rad"),)
+
+
 @dataclass(frozen=True, eq=False)
 class CalibrationStage:
     """What calibration hands on.
@@ -46,6 +59,8 @@ class CalibrationStage:
         theta: the calibrated θ plus ``touchdown_depth = 0`` [m].
         nuisance: the calibration's columns at ``theta``.
         replay_model: the model with every terrain-force candidate compiled in (neutral).
+        strength: the terrain strength's columns when φ_s is not calibrated
+            (:func:`strength_columns`; not fitted, only tested against).
     """
 
     calibration: Calibration
@@ -53,6 +68,7 @@ class CalibrationStage:
     theta: Mapping[str, float]
     nuisance: tuple[Column, ...]
     replay_model: ReplayModel
+    strength: tuple[Column, ...] = ()
 
     @property
     def nuisance_keys(self) -> list[str]:
@@ -74,7 +90,9 @@ def calibrate_model(problem: Problem, candidates: CandidateSet, *,
                             terrain_effects=candidates.terrain_force_names)
     theta = dict(cal.values)
     theta["touchdown_depth"] = 0.0
-    return CalibrationStage(cal, cal_free, theta, nuisance_columns(theta), rm)
+    return CalibrationStage(cal, cal_free, theta, nuisance_columns(theta), rm,
+                            strength_columns(theta, math.radians(problem.terrain_cfg.phi_s_deg)))
 
 
-__all__ = ["CalibrationStage", "calibrate_model", "nuisance_columns"]
+__all__ = ["CalibrationStage", "calibrate_model", "nuisance_columns", "strength_columns",
+           "STRENGTH"]

@@ -5,7 +5,7 @@ measured variable and how slowly (stance to stance) a residual is structured
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -21,12 +21,14 @@ from .mutual_info import mutual_info
 from .problem import Problem
 from .regression import Regression
 from .residuals import Residuals
-from .thresholds import LOCALISATION_FEATURES, MAJOR_BIAS, T_CELL
+from .thresholds import LOCALISATION_FEATURES, MAJOR_BIAS, PRACTICAL_BIAS, T_CELL
 
 #: strongest significant cells kept in :attr:`Localization.significant_cells`
 MAX_LISTED_CELLS = 40
 #: binned samples the mutual-information estimate is subsampled to
 MI_MAX_SAMPLES = 3000
+#: σ of white noise = 1.4826 · median |second difference| / √6 (robust, ignores smooth motion)
+_MAD_TO_SIGMA = 1.4826 / math.sqrt(6.0)
 
 
 def spearman(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
@@ -38,8 +40,47 @@ def spearman(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     return float(r.statistic), float(r.pvalue)
 
 
-def _cells(windows, R, channels, edges, sigma) -> list[Cell]:
+def measurement_noise(windows: Sequence[StanceWindow],
+                      channels: Sequence[str]) -> dict[str, float]:
+    """Per channel: the measurement noise of one sample, estimated from the data.
+
+    The second difference x[k+1] − 2x[k] + x[k−1] of white noise of σ has variance 6σ²,
+    while the measured motion contributes ~a·Δt² (at 500 Hz: 1e-5 m for a sole decelerating
+    at 2.5 m/s², against 1 mm of marker noise), so σ = 1.4826 · median |Δ²x| / √6 over the
+    stance samples (the median ignores the force steps of touchdown). Low-passed noise
+    (``dq_*``, ``base_v*``) is underestimated, which only makes the practical-size test
+    of :func:`localize` less strict.
+
+    Args:
+        windows: stance windows; their ``meas`` arrays (channel units).
+        channels: channels to estimate.
+
+    Returns:
+        channel → σ_meas (channel units; 0 where fewer than 3 finite samples).
+    """
+    out = {}
+    for ch in channels:
+        d2 = []
+        for w in windows:
+            x = np.asarray(w.meas.get(ch, ()), float)
+            if x.size >= 3:
+                d = np.diff(x, 2)
+                d2.append(d[np.isfinite(d)])
+        d2 = np.concatenate(d2) if d2 else np.empty(0)
+        out[ch] = float(_MAD_TO_SIGMA * np.median(np.abs(d2))) if d2.size else 0.0
+    return out
+
+
+def practical_floor(sigma_c: float, sigma_meas: float) -> float:
+    """The smallest cell bias of practical size: ``PRACTICAL_BIAS`` × the error of one
+    sample of a correct model, √(σ_c² + σ_meas²) — its stance-to-stance replay scatter
+    and the sensor's noise (channel units)."""
+    return PRACTICAL_BIAS * math.hypot(sigma_c, sigma_meas)
+
+
+def _cells(windows, R, channels, edges, sigma, noise) -> list[Cell]:
     W, C, B = R.shape
+    floor = {ch: practical_floor(sigma.get(ch, 1.0), noise.get(ch, 0.0)) for ch in channels}
     cells = []
     sides = np.array([w.side for w in windows])
     # pooled over both stance sides, and per side (a lateral effect may flip sign with the
@@ -57,7 +98,8 @@ def _cells(windows, R, channels, edges, sigma) -> list[Cell]:
                 mean, sd = float(v.mean()), float(v.std(ddof=1))
                 t = mean / (sd / math.sqrt(v.size)) if sd > 0 else 0.0
                 nb = mean / sigma.get(ch, 1.0)
-                major = bool(abs(nb) >= MAJOR_BIAS) if abs(t) >= T_CELL else None
+                major = (bool(abs(nb) >= MAJOR_BIAS and abs(mean) >= floor[ch])
+                         if abs(t) >= T_CELL else None)
                 cells.append(Cell(ch, side, float(edges[b]), float(edges[b + 1]), mean, sd,
                                   float(np.sqrt(np.mean(v ** 2))), t, int(v.size),
                                   channel_unit(ch), nb, major))
@@ -114,16 +156,22 @@ def _whiteness(windows, R, channels, model_df) -> dict[str, Whiteness]:
 
 def localize(windows: Sequence[StanceWindow], R: np.ndarray, channels: Sequence[str],
              edges: np.ndarray, sigma: Mapping[str, float], *, model_df: int = 0,
-             seed: int = 0) -> Localization:
+             seed: int = 0, noise: Mapping[str, float] | None = None) -> Localization:
     """Where, when and with what the residual cube ``R`` (W, C, B) is structured.
+
+    A cell is *significant* when |t| ≥ ``T_CELL`` and *major* (structure a missing effect
+    must explain) when it is also of practical size: |bias| ≥ ``MAJOR_BIAS`` σ_c and
+    |bias| ≥ :func:`practical_floor` (σ_c, σ_meas).
 
     Args:
         R: binned residual (channel units); edges: phase-bin edges [%].
-        sigma: channel → stance-to-stance scatter (channel units).
+        sigma: channel → stance-to-stance scatter σ_c (channel units).
         model_df: parameters fitted to the residual (Ljung–Box degrees of freedom).
         seed: seed of the mutual-information estimate.
+        noise: channel → measurement noise of one sample σ_meas (channel units;
+            :func:`measurement_noise`); None: 0 (the size test is |bias| ≥ σ_c alone).
     """
-    cells = _cells(windows, R, channels, edges, sigma)
+    cells = _cells(windows, R, channels, edges, sigma, noise or {})
     sig = [cl for cl in cells if abs(cl.t) >= T_CELL]
     sig.sort(key=lambda cl: (not cl.major, -abs(cl.t)))
     by_channel = {}
@@ -179,6 +227,8 @@ class LocalisationStage:
         R_calibrated: the calibrated residual with the calibration re-fitted linearly.
         R_after: the final residual (= ``R_calibrated`` when nothing was added).
         theta_linear: θ of that linear re-fit.
+        measurement_noise: channel → σ_meas of one sample (:func:`measurement_noise`),
+            used by the practical-size test of both localisations.
     """
 
     before: Localization
@@ -186,6 +236,7 @@ class LocalisationStage:
     R_calibrated: np.ndarray
     R_after: np.ndarray
     theta_linear: Mapping[str, float]
+    measurement_noise: Mapping[str, float] = field(default_factory=dict)
 
 
 def localise_models(problem: Problem, res: Residuals, regression: Regression,
@@ -202,14 +253,15 @@ def localise_models(problem: Problem, res: Residuals, regression: Regression,
     beta_n, _ = regression.fit(base_keys)
     R_cal = res.R - sum(b * res.sens[k] for k, b in zip(base_keys, beta_n))
     theta_lin = {c.param: float(c.neutral + b) for c, b in zip(nuisance, beta_n)}
+    noise = measurement_noise(problem.windows, problem.channels)
     before = localize(problem.windows, R_cal, problem.channels, problem.edges, res.sigma,
-                      model_df=len(base_keys), seed=seed)
+                      model_df=len(base_keys), seed=seed, noise=noise)
     R_after = (residual_cube(problem.windows, final_preds, problem.channels, problem.edges)
                if final_preds is not None else R_cal)
     after = localize(problem.windows, R_after, problem.channels, problem.edges, res.sigma,
-                     model_df=n_fitted, seed=seed)
-    return LocalisationStage(before, after, R_cal, R_after, theta_lin)
+                     model_df=n_fitted, seed=seed, noise=noise)
+    return LocalisationStage(before, after, R_cal, R_after, theta_lin, noise)
 
 
 __all__ = ["localize", "where_summary", "spearman", "Localization", "LocalisationStage",
-           "localise_models", "MAX_LISTED_CELLS"]
+           "localise_models", "measurement_noise", "practical_floor", "MAX_LISTED_CELLS"]

@@ -33,6 +33,7 @@ from .residuals import compute_residuals, replay_rmse
 from .result import (CalibrationReport, Diagnosis, DesignSummary, LocalizationReport,
                      NEffFactor, Recommended)
 from .screen import screen, screening_design
+from .strength import add_strength_sensitivity
 from .verdict import VerdictInputs, best_candidate_statement, decide
 
 
@@ -102,13 +103,15 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     with ReplayPool(cal.replay_model, problem.windows, workers=workers) as pool:
         t0 = _time.perf_counter()
         res = compute_residuals(problem, cands, cal, pool)
+        res = add_strength_sensitivity(problem, cal, res, pool)     # φ_s: tested against
         cands, warns = drop_dead_candidates(cands, res.sens, problem.channels)
         cands, coverage = assess_candidates(problem, ds, cands, res, unreadable,
                                             calibration_text(ds), nuisance=cal.nuisance)
         warns = tuple(warns) + coverage.warnings
         timing["replays"] = _time.perf_counter() - t0
         t0 = _time.perf_counter()
-        sd = screening_design(problem, cands, cal.nuisance, res, seed=seed)
+        sd = screening_design(problem, cands, cal.nuisance, res, seed=seed,
+                              strength=cal.strength)
         timing["design"] = _time.perf_counter() - t0
         t0 = _time.perf_counter()
         scr = screen(problem, cands, sd, n_boot=n_boot, seed=seed, max_effects=max_effects)
@@ -125,7 +128,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     timing["localize"] = _time.perf_counter() - t0
     theta = dict(ref.theta) if ref.selected else dict(loc.theta_linear)
     vin = VerdictInputs(ref.selected, ref.ranking, ref.refined_heldout, loc.after, loc.before,
-                        ref.acceptance, scr.indistinguishable, coverage.indistinguishable)
+                        ref.acceptance, scr.indistinguishable, coverage.indistinguishable,
+                        scr.strength_twins)
     verdict = decide(vin)
     best = best_candidate_statement(vin)
     verdict, proposal = pointed_proposal(verdict, best, proposal, out, str(data_dir))

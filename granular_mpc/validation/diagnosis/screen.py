@@ -21,6 +21,7 @@ from .regression import (Regression, RegressionBuilder, Regressions, fit_bounded
                          forward_selection)
 from .residuals import Residuals
 from .result import ChannelChange, IndistinguishablePair
+from .strength import StrengthTwin, strength_twin
 from .thresholds import (FEATURE_EXPERIMENTS, LARGE_HELDOUT_REDUCTION, MAX_DELTA_AICC,
                          MIN_EFFECT_SIZE, MIN_HELDOUT_REDUCTION, MIN_INCLUSION,
                          MIN_STANCE_REDUCTION)
@@ -86,6 +87,13 @@ def candidate_stats(reg: Regression, base_keys: Sequence[str],
                          folds_improved=f"{improved}/{len(cv.folds)}", effect_size=size,
                          params=params, main=infos[n].main,
                          depends_on=tuple(infos[n].depends_on), doc=infos[n].summary))
+    # a candidate that a terrain-strength mismatch explains as well is not significant
+    # (strength.py; only when the regression has the strength columns)
+    for r in rows:
+        if passes_but_inclusion(r) and strength_twin(
+                reg, base_keys, r["effect"], cand_keys[r["effect"]],
+                r["heldout_error_reduction"], {}) is not None:
+            r["strength_twin"] = True
     # bootstrap inclusion probability: forward selection by AICc on resamples of trials
     rng = np.random.default_rng(seed)
     gs = np.unique(reg.groups)
@@ -118,12 +126,15 @@ def candidate_stats(reg: Regression, base_keys: Sequence[str],
     out.sort(key=lambda r: -r["heldout_error_reduction"])
     if B:
         share_inclusion(out)
-    return [CandidateStats(**r, rank=i + 1) for i, r in enumerate(out)]
+    return [CandidateStats(**{k: v for k, v in r.items() if k != "strength_twin"}, rank=i + 1)
+            for i, r in enumerate(out)]
 
 
 def passes_but_inclusion(r: Mapping) -> bool:
-    """The held-out, AICc and practical tests (every test but the bootstrap inclusion)."""
-    return bool(r["heldout_error_reduction"] >= MIN_HELDOUT_REDUCTION
+    """The held-out, AICc and practical tests (every test but the bootstrap inclusion), and
+    not a terrain-strength mismatch in disguise (``r["strength_twin"]``, :mod:`.strength`)."""
+    return bool(not r.get("strength_twin")
+                and r["heldout_error_reduction"] >= MIN_HELDOUT_REDUCTION
                 and r["delta_aicc"] <= MAX_DELTA_AICC
                 and practically_large(r["heldout_error_reduction"], r["effect_size"],
                                       r["heldout_error_reduction_stance"]))
@@ -301,12 +312,15 @@ class ScreeningDesign:
         regressions: systematic rows (scored also on stance rows) on the calibrated model.
         bounds: column key → coefficient bounds.
         base_keys: the nuisance column keys.
+        strength: the terrain-strength columns in the regressions (not in ``base_keys``:
+            only tested against, :mod:`.strength`).
     """
 
     builder: RegressionBuilder
     regressions: Regressions
     bounds: Mapping[str, tuple[float, float]]
     base_keys: tuple[str, ...]
+    strength: tuple[Column, ...] = ()
 
     @property
     def regression(self) -> Regression:
@@ -320,17 +334,23 @@ class Screening(ScreeningDesign):
     Attributes:
         ranking: candidate statistics by held-out error reduction.
         indistinguishable: nearly collinear leading pairs.
+        strength_twins: candidates that pass every test but are explained as well by a
+            terrain-strength mismatch (not significant, :mod:`.strength`).
     """
 
     ranking: tuple[CandidateStats, ...] = ()
     indistinguishable: tuple[IndistinguishablePair, ...] = ()
+    strength_twins: tuple[StrengthTwin, ...] = ()
 
 
 def screening_design(problem: Problem, candidates: CandidateSet, nuisance: Sequence[Column],
-                     res: Residuals, *, seed: int) -> ScreeningDesign:
+                     res: Residuals, *, seed: int,
+                     strength: Sequence[Column] = ()) -> ScreeningDesign:
     """The regressions on the calibrated residual with every column (bounds = the
-    parameters' physical ranges around their neutral values)."""
-    bounds = {c.key: c.bounds for c in nuisance}
+    parameters' physical ranges around their neutral values); ``strength``: the
+    terrain-strength columns (their sensitivities in ``res.sens``), tested against only."""
+    strength = tuple(c for c in strength if c.key in res.sens)
+    bounds = {c.key: c.bounds for c in tuple(nuisance) + strength}
     for cols in candidates.columns.values():
         for col in cols:
             bounds[col.key] = col.bounds
@@ -338,7 +358,7 @@ def screening_design(problem: Problem, candidates: CandidateSet, nuisance: Seque
     group_unit = "trial" if problem.n_trials >= 3 else "stance"
     builder = RegressionBuilder(problem.windows, problem.channels, res.sigma, group_unit, seed)
     regs = builder.build(res.R, res.sens, res.geometry, bounds, base_keys)
-    return ScreeningDesign(builder, regs, bounds, tuple(base_keys))
+    return ScreeningDesign(builder, regs, bounds, tuple(base_keys), strength)
 
 
 def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, *,
@@ -354,8 +374,23 @@ def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, 
                               candidates.infos,
                               Regression(design.regressions.stance, design.bounds, base_keys,
                                          seed=seed))
+    neutral = {c.key: c.neutral for c in design.strength}
+    twins = []
+    for r in ranking:
+        stats = dict(heldout_error_reduction=r.heldout_error_reduction,
+                     delta_aicc=r.delta_aicc, effect_size=r.effect_size,
+                     heldout_error_reduction_stance=r.heldout_error_reduction_stance)
+        if neutral and passes_but_inclusion(stats):
+            tw = strength_twin(reg, base_keys, r.effect, cand_keys[r.effect],
+                               r.heldout_error_reduction, neutral)
+            if tw is not None:
+                twins.append(tw)
+    # a twin must not come back as a leader's indistinguishable partner (refine refines
+    # partners whether significant or not): a calibration matter is no contender
+    gone = {t.effect for t in twins}
+    pairs = [p for p in pairs if not gone & set(p.effects)]
     return Screening(design.builder, design.regressions, design.bounds, design.base_keys,
-                     tuple(ranking), tuple(pairs))
+                     design.strength, tuple(ranking), tuple(pairs), tuple(twins))
 
 __all__ = ["Screening", "ScreeningDesign", "screening_design", "screen", "candidate_stats",
            "practically_large", "indistinguishable", "separating_experiment", "channel_heldout",

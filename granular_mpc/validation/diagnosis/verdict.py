@@ -17,7 +17,8 @@ from .localise import where_summary
 from .localization_records import Localization
 from .ranking_records import Ranked
 from .result import IndistinguishablePair, RefinedHeldout, Verdict
-from .thresholds import MAJOR_BIAS
+from .strength import StrengthTwin
+from .thresholds import MAJOR_BIAS, PRACTICAL_BIAS
 
 #: cells named in a ``partially_explained`` verdict
 LISTED_REMAINING = 4
@@ -38,6 +39,8 @@ class VerdictInputs:
         channel_twins: (candidate that cannot be assessed, candidate that explains its
             signature) on the measured channels (:mod:`.identifiability`): an addition of
             the second is ambiguous.
+        strength_twins: candidates not significant because a terrain-strength (φ_s)
+            mismatch explains their evidence as well (:mod:`.strength`).
     """
 
     selected: tuple[str, ...]
@@ -48,6 +51,7 @@ class VerdictInputs:
     acceptance: tuple[Acceptance, ...] = ()
     indistinguishable: tuple[IndistinguishablePair, ...] = ()
     channel_twins: tuple[tuple[str, str], ...] = ()
+    strength_twins: tuple[StrengthTwin, ...] = ()
 
     def twins_of(self, name: str) -> tuple[str, ...]:
         """The candidates the measured channels cannot tell from an addition of ``name``."""
@@ -132,7 +136,9 @@ def no_significant_missing_effect(v: VerdictInputs) -> Verdict:
     """Nothing added and no major cell."""
     text = ("no significant missing effect: no candidate passes the held-out, AICc and "
             "bootstrap tests, and no channel × phase cell shows a systematic residual "
-            f"larger than {MAJOR_BIAS:g} × the stance-to-stance scatter")
+            f"larger than {MAJOR_BIAS:g} × the stance-to-stance scatter and "
+            f"{PRACTICAL_BIAS:g} × the error of one sample of a correct model "
+            "(that scatter and the sensor noise)")
     if v.after.n_significant_cells:
         text += (f" ({v.after.n_significant_cells} cells are statistically but not "
                  "practically significant, see localization)")
@@ -145,9 +151,12 @@ VERDICT_RULES: Sequence[Callable[[VerdictInputs], Verdict | None]] = (
 
 
 def rejected_sentence(v: VerdictInputs) -> str:
-    """The refined contenders reported but not added, with why ("" if none)."""
+    """The refined contenders reported but not added, with why, and the candidates that
+    are a terrain-strength mismatch in disguise ("" if none)."""
     out = [f"{a.effect} was reported, not added ({'; '.join(a.reasons)})"
            for a in v.acceptance if not a.accepted]
+    out += [f"{t.sentence()}; not added" for t in v.strength_twins
+            if t.effect not in v.selected]
     return ". ".join(out)
 
 
@@ -178,6 +187,10 @@ def best_candidate_statement(v: VerdictInputs) -> str:
                     "with, its coefficients are physical and the structure it was added for "
                     "is explained")
         return f"{name} is only the closest proxy: " + "; ".join(why)
+    twin = next((t for t in v.strength_twins if t.effect == name), None)
+    if twin is not None:
+        return (f"the best candidate, {name}, is only the closest proxy and was not added: "
+                + twin.sentence())
     if best.not_added_because:
         return (f"the best candidate, {name}, is only the closest proxy and was not added: "
                 + "; ".join(best.not_added_because))
