@@ -24,7 +24,9 @@ class Cell(Record):
         t: bias / (sd / √n); n: stances.
         normalised_bias: bias / σ_c (the channel's stance-to-stance scatter).
         major: for a significant cell (|t| ≥ T_CELL), |normalised_bias| ≥ MAJOR_BIAS
-            (None for the others).
+            and |bias| ≥ ``practical_floor(σ_c, σ_meas)`` (PRACTICAL_BIAS × the error of
+            one sample of a right model: replay scatter and sensor noise; see
+            :func:`..localise.practical_floor`); None for the others.
     """
 
     channel: str

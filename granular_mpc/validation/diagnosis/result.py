@@ -14,13 +14,14 @@ from typing import Any, Mapping
 
 from ...output import json_safe
 from ..calibrate import Calibration
-from .acceptance_records import Acceptance, ChannelChange, CoefficientCheck
+from .acceptance_records import Acceptance, ChannelChange, CoefficientCheck, StrengthTwin
 from .localization_records import Localization
 from .proposal_records import Proposal
 from .ranking_records import Ranked
 from .records import NOT_JSON, OMIT_EMPTY, OMIT_NONE, Record
 from .thresholds import (LARGE_HELDOUT_REDUCTION, MAX_DELTA_AICC, MIN_EFFECT_SIZE,
-                         MIN_HELDOUT_REDUCTION, MIN_INCLUSION, MIN_STANCE_REDUCTION, T_CELL)
+                         MIN_HELDOUT_REDUCTION, MIN_INCLUSION, MIN_STANCE_REDUCTION,
+                         PRACTICAL_BIAS, T_CELL)
 
 DIAGNOSIS_FILE = "diagnosis.json"
 REPORT_FILE = "report.md"
@@ -37,6 +38,7 @@ class Thresholds(Record):
     max_delta_aicc: float = MAX_DELTA_AICC
     min_inclusion_probability: float = MIN_INCLUSION
     cell_t: float = T_CELL
+    cell_practical_bias: float = PRACTICAL_BIAS
 
 
 @dataclass(frozen=True)
@@ -269,6 +271,9 @@ class Diagnosis(Record):
         out_dir: where it was written (None: not written).
         proposal: a term proposed from the force equation error (:mod:`.proposal`; its
             effect file is in ``out_dir``), None when not computed.
+        strength_twins: candidates that passed every test but that a terrain-strength
+            (φ_s) mismatch of the model file explains as well (:mod:`.strength`): a
+            calibration matter, not added.
     """
 
     data: str
@@ -290,6 +295,7 @@ class Diagnosis(Record):
     best_candidate: str = ""
     out_dir: Path | None = field(default=None, metadata=NOT_JSON)
     proposal: Proposal | None = field(default=None, metadata=OMIT_NONE)
+    strength_twins: tuple[StrengthTwin, ...] = field(default=(), metadata=OMIT_EMPTY)
 
     @property
     def added(self) -> list[str]:

@@ -22,59 +22,17 @@ exactly as before: the φ_s column is never part of its fit.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Mapping, Sequence
 
 from ..replay.pool import ReplayPool
+from .acceptance_records import StrengthTwin
 from .calibration import STRENGTH, CalibrationStage
 from .cubes import group_keys, pred_cube
 from .problem import Problem
-from .records import Record
 from .regression import Regression
 from .residuals import Residuals, guard_jumps
 from .thresholds import MAX_DELTA_AICC, MIN_HELDOUT_REDUCTION
-
-
-@dataclass(frozen=True)
-class StrengthTwin(Record):
-    """A candidate whose evidence a terrain-strength mismatch explains as well.
-
-    Attributes:
-        effect: the candidate.
-        heldout_error_reduction: its held-out error reduction against the model.
-        given_strength_heldout_error_reduction: the same with φ_s free in the model.
-        given_strength_delta_aicc: its ΔAICc against the model with φ_s free.
-        strength_heldout_error_reduction: what φ_s free alone removes.
-        strength_values: the terrain-strength parameters the linear fit asks for, in
-            readable units (``phi_s_deg`` [deg]).
-        file_values: the same in the terrain file.
-    """
-
-    effect: str
-    heldout_error_reduction: float
-    given_strength_heldout_error_reduction: float
-    given_strength_delta_aicc: float
-    strength_heldout_error_reduction: float
-    strength_values: Mapping[str, float]
-    file_values: Mapping[str, float]
-
-    def sentence(self) -> str:
-        """The twin in words (signed changes of the held-out error: −26 % is a reduction)."""
-        fitted = ", ".join(f"{k} ≈ {v:.1f}" for k, v in self.strength_values.items())
-        filed = ", ".join(f"{v:.1f}" for v in self.file_values.values())
-        values = f" ({fitted}; terrain file {filed})" if fitted else ""
-        return (f"{self.effect} is indistinguishable from a terrain-strength mismatch: φ_s "
-                f"free{values} changes the held-out error by "
-                f"{_signed(self.strength_heldout_error_reduction)}, {self.effect} alone by "
-                f"{_signed(self.heldout_error_reduction)}, {self.effect} beside φ_s by "
-                f"{_signed(self.given_strength_heldout_error_reduction)} (ΔAICc "
-                f"{self.given_strength_delta_aicc:.0f}): a calibration matter, not a missing "
-                "effect — correct φ_s in the terrain file")
-
-
-def _signed(reduction: float) -> str:
-    """A held-out error reduction as a signed change: 0.26 → ``−26.2 %``."""
-    return f"{'−' if reduction >= 0 else '+'}{abs(100.0 * reduction):.1f} %"
 
 
 def add_strength_sensitivity(problem: Problem, cal: CalibrationStage, res: Residuals,
