@@ -60,6 +60,7 @@ class MPCConfig(StrictModel):
     friction: PositiveFloat = Field(0.6, description="Friction coefficient of the rigid-ground model [-].")
     max_normal_force: PositiveFloat = Field(300.0, description="Upper bound on the normal force per foot [N].")
     com_height: PositiveFloat = Field(0.41, description="Desired CoM height above the undisturbed surface [m].")
+    qp: Literal["newton", "scaled"] = Field("newton", description="The QP's numerics: 'newton' (forces in N; ProxSuite's tolerance fixes them only to ~10 N, every documented result uses it) or 'scaled' (forces in units of m g, primal-dual backend, mu_in restarted each solve: the optimum to ~0.003 N and about half the solve time; docs/speed.md 'The MPC tick').")
 
 
 class WBCConfig(StrictModel):

@@ -30,16 +30,28 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..config import MPCConfig
+from ..exceptions import ConfigError
 from ..rotations import rot_z, skew, skew_rows
 from .contact_model import GroundModel
 from .solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
 
 BIG = 1e20
+
+#: The MPC QP's numerics by name (``MPCConfig.qp``): ``newton`` — the settings every
+#: documented result was measured with; ``scaled`` — forces in units of m g, the
+#: primal-dual LDLT backend, μ_in restarted at 0.1 on every warm-started solve and a primal
+#: infeasibility tolerance of 1e-6 (docs/speed.md, "The MPC tick (issue 12)").
+QP_SETTINGS: dict[str, dict] = {
+    "newton": dict(qp_backend="automatic", qp_scaled=False, qp_mu_in_reset=None,
+                   qp_eps_abs=1e-4, qp_eps_primal_inf=None),
+    "scaled": dict(qp_backend="primal_dual_ldlt", qp_scaled=True, qp_mu_in_reset=0.1,
+                   qp_eps_abs=1e-4, qp_eps_primal_inf=1e-6),
+}
 
 
 @dataclass
@@ -110,13 +122,30 @@ class CentroidalMPC:
     ground: GroundModel
     n_points: int = 2
     max_pairs: int = 10         # most (step, foot) contacts in one horizon
-    #: ProxSuite dense backend (``DENSE_BACKENDS``). ``primal_dual_ldlt`` needs half the
-    #: warm-started iterations of ``automatic`` (which picks the primal LDLT for n_in = 2 n)
-    #: but lands elsewhere in the QP's tolerance set (H's smallest eigenvalue is the force
-    #: weight, 1e-5, so eps_abs = 1e-4 fixes forces only to ~10 N): on sand at 0.2 m/s it
-    #: shifts slip by −14 % and CoT by +1.5 %, outside the run-to-run noise, so it is not
-    #: the default.
+    #: The QP's numerics; :meth:`with_qp` sets them from ``MPCConfig.qp``. The defaults are
+    #: the ``newton`` settings: forces in newtons, ProxSuite's ``automatic`` backend (the
+    #: primal LDLT for n_in = 2 n), μ_in kept from solve to solve. H's smallest eigenvalue
+    #: is then the force weight, 1e-5, so eps_abs = 1e-4 fixes the forces only to ≈ 10 N
+    #: (measured: warm-started plans land 4.6 N median, 16 N worst from the QP's optimum),
+    #: and μ_in shrinks 0.1 → 1e-8 over ≈ 40 ticks (the 1000-iteration solves of the p99).
+    #: ``scaled`` (``QP_SETTINGS``) fixes both; it plans different forces, so it is opt-in
+    #: until the documented results are re-measured with it (docs/speed.md, "The MPC tick").
+    #: ProxSuite dense backend (``DENSE_BACKENDS``).
     qp_backend: str = "automatic"
+    #: QP variables in units of the robot's weight m g instead of newtons (the forces'
+    #: Hessian weight becomes ``weight_force``·(m g)² ≈ 0.1 instead of 1e-5; scaled, the same
+    #: eps_abs lands ≈ 0.003 N median from the optimum). The constraint rows stay in
+    #: newtons; the box bounds are in m g.
+    qp_scaled: bool = False
+    #: ProxSuite's inequality penalty each warm-started solve restarts from
+    #: (:class:`ProxQPSolver`'s ``mu_in_reset``); None keeps the previous solve's.
+    qp_mu_in_reset: float | None = None
+    #: ProxSuite's absolute tolerance (in the scaled units when ``qp_scaled``).
+    qp_eps_abs: float = 1e-4
+    #: ProxSuite's primal infeasibility tolerance (:class:`ProxQPSolver`'s
+    #: ``eps_primal_inf``): the QP is feasible by construction (zero forces satisfy every
+    #: row), so an infeasibility verdict can only be false; None: ProxSuite's default.
+    qp_eps_primal_inf: float | None = None
 
     # ---------------------------------------------------------------- sizes
     @property
@@ -140,9 +169,23 @@ class CentroidalMPC:
     def n_in(self) -> int:
         return self.max_pairs * self.rows_per_pair
 
+    @property
+    def force_unit(self) -> float:
+        """Force [N] of one unit of the QP's variables: m g when ``qp_scaled``, else 1."""
+        return self.mass * self.gravity if self.qp_scaled else 1.0
+
+    def with_qp(self, name: str) -> "CentroidalMPC":
+        """This MPC with the QP numerics ``name`` (a key of ``QP_SETTINGS``)."""
+        if name not in QP_SETTINGS:
+            raise ConfigError(f"unknown MPC QP settings {name!r}; allowed: "
+                              f"{', '.join(QP_SETTINGS)}", key="controller.mpc.qp", value=name)
+        return replace(self, **QP_SETTINGS[name])
+
     def new_data(self) -> MPCData:
-        return MPCData(ProxQPSolver(self.nu, 0, self.n_in, box=True, eps_abs=1e-4, max_iter=100,
-                                    backend=self.qp_backend),
+        return MPCData(ProxQPSolver(self.nu, 0, self.n_in, box=True, eps_abs=self.qp_eps_abs,
+                                    max_iter=100, backend=self.qp_backend,
+                                    mu_in_reset=self.qp_mu_in_reset,
+                                    eps_primal_inf=self.qp_eps_primal_inf),
                        work=self._new_work())
 
     def _new_work(self) -> MPCWork:
@@ -235,17 +278,23 @@ class CentroidalMPC:
         G4 = np.where((m >= 0.0)[:, None, :, None], G4, 0.0)
         Gam = G4.reshape(N * nx, na)
         err = free - self._wrap_reference(x_ref, x0).ravel()
-        QG = Gam * w.q_rep[:, None]
+        # the QP's variables: forces in units of fu (m g when scaled; see ``qp_scaled``)
+        fu = self.force_unit
+        scaled = fu != 1.0
+        Gs = Gam * fu if scaled else Gam
+        QG = Gs * w.q_rep[:, None]
         H, g = w.H, w.g
         H.fill(0.0)
         g.fill(0.0)
-        H[:na, :na] = Gam.T @ QG
+        H[:na, :na] = Gs.T @ QG
         g[:na] = QG.T @ err
-        H[np.arange(self.nu), np.arange(self.nu)] += c.weight_force
+        H[np.arange(self.nu), np.arange(self.nu)] += c.weight_force * fu * fu
         if c.weight_sinkage > 0.0 and self.ground.granular and P:
             F0 = nominal_load[ks, fs]
             z0 = np.array([self.ground.sinkage(f) for f in F0])
             a = np.array([self.ground.sinkage_slope(f) for f in F0])
+            if scaled:      # z0 + a (F − F0) = z0 + (a fu)(u − F0/fu)
+                a, F0 = a * fu, F0 / fu
             # (z0 + a (F_z − F0))², F_z = Σ of the foot's points
             jz = (np.arange(P)[:, None] * npair + 3 * np.arange(nps)[None, :] + 2)
             H[jz[:, :, None], jz[:, None, :]] += (2.0 * c.weight_sinkage * a * a)[:, None, None]
@@ -263,6 +312,8 @@ class CentroidalMPC:
         for i in range(nps):
             block[i * nc:(i + 1) * nc, 3 * i:3 * i + 3] = cone
             block[nps * nc:, 3 * i:3 * i + 3] = capr
+        if scaled:          # rows stay in newtons: C u = (C fu) (F / fu)
+            block *= fu
         diag = np.arange(self.max_pairs)
         w.C4[diag[:P], :, diag[:P], :] = block
         w.C4[diag[P:], :, diag[P:], :] = 0.0
@@ -280,12 +331,14 @@ class CentroidalMPC:
         lb3[:P, :, :2] = -BIG
         ub3[:P, :, :2] = BIG
         ub3[:P, :, 2] = (poly.f_max * share / nps)[:, None]
+        if scaled:
+            ub3[:P, :, 2] /= fu
         build_ms = (time.perf_counter() - t0) * 1e3
         sol = data.solver.solve(QPProblem(H, g, None, None, w.C, w.l, w.u, w.lb, w.ub))
         data.solves += 1
         fallback = ""
         if sol.status.ok:
-            U = sol.x
+            U = sol.x * fu if scaled else sol.x
         else:
             data.failures += 1
             pairs = list(zip(ks.tolist(), fs.tolist()))
@@ -352,4 +405,4 @@ class CentroidalMPC:
         return U, "shifted+nominal" if shifted else "nominal"
 
 
-__all__ = ["CentroidalMPC", "MPCData", "MPCPlan", "MPCWork", "rot_z", "skew"]
+__all__ = ["CentroidalMPC", "MPCData", "MPCPlan", "MPCWork", "QP_SETTINGS", "rot_z", "skew"]
