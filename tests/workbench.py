@@ -10,8 +10,11 @@ assertion uses.
 """
 from __future__ import annotations
 
+import contextlib
+import os
 import warnings
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -127,3 +130,37 @@ def diagnose_case(name: str, data: Path, out: Path | None, *, user_terms: bool =
         warnings.simplefilter("always")
         d = diagnose(data, out, seed=0, n_boot=100, candidates=cands, figures=figures)
     return d, [str(w.message) for w in caught if issubclass(w.category, UserWarning)]
+
+
+@contextlib.contextmanager
+def _exclusive(lock_path: Path):
+    """Exclusive ``fcntl`` lock on ``lock_path`` (a no-op where ``fcntl`` is missing)."""
+    try:
+        import fcntl
+    except ImportError:                     # not POSIX: parallel workers just duplicate work
+        yield
+        return
+    with open(lock_path, "a+") as fh:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+
+
+def build_once(out: Path, build: Callable[[Path], object]) -> Path:
+    """``out`` built by ``build(out)`` once among the processes that share its folder.
+
+    The test session's workers (``pytest -n``, docs/testing.md) share one folder per run:
+    the first worker that needs a data set builds it while holding ``<out>.lock``, the
+    others wait and then read it. ``<out>.done`` is written only after a complete build,
+    so a build interrupted half-way is redone, never read.
+    """
+    done = out.with_name(out.name + ".done")
+    if done.is_file():
+        return out
+    with _exclusive(out.with_name(out.name + ".lock")):
+        if not done.is_file():              # another worker may have built it meanwhile
+            build(out)
+            done.write_text(str(os.getpid()))
+    return out
