@@ -14,10 +14,12 @@ trials at 0.15 / 0.25 / 0.35 m/s × ``--steps`` stances, the test suite's design
 turned into a data set with sensor noise level 1 (``noisy_copy``) and diagnosed twice:
 
 1. **library run**: the library's seven effects as candidates (what a new user gets);
-2. **feedback run** (when the library run wrote ``proposed_effect.py``): the library plus
-   that proposal passed back with ``--effect-file`` (and, with ``--user-terms``, plus the
+2. **feedback run** (when the library run proposed anything): the library plus the
+   proposed effects passed back with ``--effect-file``, one file per effect
+   (``proposed_force.py``, ``proposed_joint.py``, ``proposed_torque_sensor.py``; only
+   effects that met their evidence rule are written), and, with ``--user-terms``, the
    true form registered under ``user_<form>`` with a neutral default: the user who writes
-   the right term from the localisation).
+   the right term from the localisation.
 
 Cases: each form at two magnitudes × ``--seeds``; pairs (a library effect + a form at its
 first magnitude, first seed); null sets without any effect but with a plant whose φ_s,
@@ -357,16 +359,19 @@ def run_case(case: Case, root: Path, steps: int, n_boot: int, user_terms: bool,
     row["lib"] = _summary(lib)
     row["lib_s"] = time.perf_counter() - t0
     prop = lib.proposal
-    row["proposal"] = ({"file": prop.file, "pointed_to": prop.pointed_to,
+    row["proposal"] = ({"file": prop.file, "files": list(prop.files),
+                        "pointed_to": prop.pointed_to,
                         "terms": {f"{t.axis}:{t.feature}": t.coefficient_patch
                                   for t in prop.terms},
                         # joint-axis terms (joint_proposal.py): "joint:<name>:<feature>"
                         "joint_terms": {f"joint:{t.joint}:{t.feature}": t.coefficient
                                         for t in prop.joint_terms}}
                        if prop is not None else None)
-    files = [str(lib.out_dir / prop.file)] if prop is not None and prop.file else []
-    # the file registers the force proposal and/or the joint-axis ones (proposal.py)
-    cands = library + (list(proposed_effects(prop)) if files else [])
+    # one file per proposed effect, each of which met its evidence rule (proposal.py):
+    # every one is passed back, each registering the effect its file is named after
+    files = [str(lib.out_dir / f) for f in prop.files] if prop is not None else []
+    cands = library + [Path(f).stem for f in files]
+    assert set(cands[len(library):]) <= set(proposed_effects(prop)), (files, prop)
     if user_terms and case.form:
         cands.append(FORM_BY_NAME[case.form].user)
     row["fb"] = None
@@ -562,7 +567,7 @@ def _child(args) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--forms", nargs="+", default=[f.name for f in FORMS],
+    ap.add_argument("--forms", nargs="*", default=[f.name for f in FORMS],
                     choices=[f.name for f in FORMS])
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--magnitudes", type=int, default=2, choices=(1, 2))

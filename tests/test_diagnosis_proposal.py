@@ -8,10 +8,16 @@ import pytest
 from granular_mpc.effects import effect_info, load_effect_file
 from granular_mpc.effects.state import PatchState
 from granular_mpc.terrain.closed_form import FLOAT
-from granular_mpc.validation.diagnosis.features import FEATURES, feature, feature_names
-from granular_mpc.validation.diagnosis.proposal import (PROPOSAL_FILE, effect_source,
-                                                        pointed_proposal, propose_terms)
-from granular_mpc.validation.diagnosis.proposal_records import AxisFit, Proposal, ProposedTerm
+from granular_mpc.validation.diagnosis.features import (FEATURES, feature, feature_names,
+                                                        sample_columns)
+from granular_mpc.validation.diagnosis.joint_proposal import PROPOSED_JOINT, PROPOSED_SENSOR
+from granular_mpc.validation.diagnosis.proposal import (MIN_EXPLAINED_FORCE, PROPOSAL_FILE,
+                                                        axis_passes, effect_source,
+                                                        effect_sources, pointed_proposal,
+                                                        propose_terms, write_proposal)
+from granular_mpc.validation.diagnosis.proposal_records import (AxisFit, JointFit, JointTerm,
+                                                                Proposal, ProposedTerm,
+                                                                change_text)
 from granular_mpc.validation.diagnosis.result import Verdict
 from granular_mpc.validation.diagnosis.sparse import independent, sparse_fit, stlsq
 
@@ -101,21 +107,101 @@ def test_effect_file_registers_and_evaluates_the_proposed_force(tmp_path):
 def test_verdict_points_to_the_proposal_only_when_unexplained(tmp_path):
     v = Verdict("unexplained_structure", "structure", ())
     v2, p2 = pointed_proposal(v, "", _proposal(), tmp_path)
-    assert p2.pointed_to and PROPOSAL_FILE in v2.text and (tmp_path / PROPOSAL_FILE).is_file()
+    assert p2.pointed_to and p2.files == ("test_proposed_force.py",)
+    assert "--effect-file test_proposed_force.py" in v2.text
+    assert (tmp_path / PROPOSAL_FILE).is_file() and (tmp_path / p2.files[0]).is_file()
     v3, p3 = pointed_proposal(Verdict("no_significant_missing_effect", "none", ()), "",
                               _proposal(), tmp_path)
     assert not p3.pointed_to and PROPOSAL_FILE not in v3.text
 
 
+def _force_fit(pattern_n, effect_n, seed=0, n_groups=3, per=100):
+    """A sparse fit of a constructed force equation error [N]: a systematic pattern of
+    RMS ``pattern_n`` on three features that varies between trials (the closed form's
+    forward-axis error on data without a missing force: explained by the features in
+    sample, held-out −30 to −90 %), plus a true term of RMS ``effect_n`` on a fourth
+    feature that is the same in every trial, plus 2 N noise."""
+    rng = np.random.default_rng(seed)
+    n = n_groups * per
+    X = rng.normal(size=(n, 6))
+    groups = np.repeat(np.arange(n_groups), per).astype(str)
+    mix = 1.0 + 0.3 * rng.normal(size=(n_groups, 3))          # per-trial pattern weights
+    g = np.repeat(np.arange(n_groups), per)
+    pattern = (X[:, :3] * mix[g]).sum(axis=1)
+    pattern *= pattern_n / np.sqrt(np.mean(pattern ** 2))
+    y = pattern + effect_n * X[:, 3] + 2.0 * rng.normal(size=n)
+    fit = sparse_fit(X, np.ones((n, 1)), y, groups, np.arange(n) // 10, seed=seed)
+    return fit
+
+
+@pytest.mark.parametrize("axis", ["z", "h"])
+def test_axis_rule_needs_more_force_than_null_data_explain(axis):
+    """The evidence rule of a force axis: a null-like pattern with a large held-out
+    reduction but less force than :data:`MIN_EXPLAINED_FORCE` is not proposed; the same
+    pattern plus a term twice the threshold is."""
+    thr = MIN_EXPLAINED_FORCE[axis]
+    null = _force_fit(0.8 * thr, 0.0)
+    assert null.heldout_reduction_selected >= 0.15 and null.heldout_reduction >= 0.075
+    assert not axis_passes(null.heldout_reduction, null.heldout_reduction_selected,
+                           null.rmse_before, null.rmse_after, axis)
+    real = _force_fit(0.8 * thr, 2.0 * thr, seed=1)
+    assert axis_passes(real.heldout_reduction, real.heldout_reduction_selected,
+                       real.rmse_before, real.rmse_after, axis)
+    # a large force that does not hold out (per-fold selection makes the error worse)
+    assert not axis_passes(-0.4, 0.7, 30.0, 5.0, axis)
+    assert axis_passes(0.6, 0.7, 30.0, 5.0, axis)
+    assert AxisFit(axis, 0.6, 0.7, 5.0, 3.0, 0.1, True).explained_rms == pytest.approx(4.0)
+
+
+def test_a_reduction_prints_as_a_signed_change():
+    assert change_text(0.83) == "−83 %" and change_text(-0.12) == "+12 %"
+    assert "−-" not in change_text(-0.004) and change_text(0.0) == "+0 %"
+
+
+def _full_proposal():
+    joint = (JointTerm("left_knee", "dq", -0.4, 0.01, "N·m/(rad/s)", 1.0),
+             JointTerm("right_knee", "tau", -0.1, 0.01, "-", 1.0))
+    fits = (JointFit("left_knee", 0.8, 0.8, 0.5, 0.1, True),
+            JointFit("right_knee", 0.5, 0.5, 0.4, 0.2, True))
+    return Proposal(_proposal().effect, "", _proposal().terms, _proposal().axes, 400, 24,
+                    joint_terms=joint, joint_fits=fits)
+
+
+def test_each_proposed_effect_is_written_to_a_file_of_its_own(tmp_path):
+    """One file per proposed effect, each loading alone and registering only its effect;
+    the file with all of them registers the three."""
+    p = write_proposal(tmp_path, _full_proposal(), "data")
+    assert p.files == ("test_proposed_force.py", f"{PROPOSED_JOINT}.py", f"{PROPOSED_SENSOR}.py")
+    assert set(effect_sources(_full_proposal())) == set(p.files)
+    for f in p.files:
+        text = (tmp_path / f).read_text(encoding="utf-8")
+        # one registration, of the effect the file is named after (load_effect_file
+        # returns only names new to the registry, so the text is what is checked)
+        assert text.count("@register_") == 1 and f"({f[:-3]!r}, replace=True" in text
+        assert f"--effect-file {f}" in text
+        load_effect_file(str(tmp_path / f))
+        assert set(effect_info(f[:-3]).params) > {"scale"} or f == p.files[0]
+    all_text = (tmp_path / p.file).read_text(encoding="utf-8")
+    assert all_text.count("@register_") == 3
+    load_effect_file(str(tmp_path / p.file))
+    assert effect_info(PROPOSED_SENSOR).kind == "sensor"
+    assert effect_info(PROPOSED_JOINT).kind == "joint"
+    # a proposal with nothing expressible writes nothing
+    empty = Proposal("x", "", (), (), 10, 2)
+    assert write_proposal(tmp_path / "none", empty).files == ()
+
+
 @pytest.mark.slow
 def test_proposal_finds_a_hidden_vertical_damping(tmp_path, monkeypatch):
     """Out-of-library F_z = −b·v_z (b = 10 N·s/m per patch, 20 per foot) written with the
-    plugin API: the proposal selects v_z with the right sign and order of magnitude.
+    plugin API: on most realisations the proposal selects a sink-rate term with the sign
+    of a damping.
 
-    Synthesized on the reference plant: on the compiled plant (the default since
-    dynamics/select.py) the same seed's realisation changed with each plant revision, and
-    at commit 6ff5f97 the proposal selects no vertical term at all — an open weakness of
-    the proposal on some realisations (docs/validation.md §5.3), not hidden here."""
+    A rate over three realisations (seeds 31–33, reference plant), not one seed: whether
+    the z axis passes its evidence rule is realisation-dependent (each revision of the
+    plant and of the controller changes the same seed's data). Measured (this commit):
+    seed 31 explains 3.6 N on z (below the 5 N rule: nothing proposed), seeds 32 and 33
+    8.9–9.3 N with held-out −88 %. The test asks for 2 of 3."""
     monkeypatch.setenv("GRANULAR_MPC_PLANT", "reference")
     from granular_mpc.effects import Param, register_effect, registered_effects
     from granular_mpc.validation.calibrate import calibrate
@@ -128,21 +214,27 @@ def test_proposal_finds_a_hidden_vertical_damping(tmp_path, monkeypatch):
         def _damp(o, s, p):
             return (0.0, 0.0, -p["b"] * s.v_c[2] * s.in_contact)
 
-    clean = tmp_path / "clean"
-    synthesize("sand_walk", clean, speeds=(0.15, 0.25, 0.35), steps=7, seed=31,
-               effects=["_test_hidden_damping:b=10"], noise=0.0, format="parquet")
-    noisy = noisy_copy(clean, tmp_path / "noisy", 1.0, seed=31)
-    pr = load_problem(noisy)
-    cal = calibrate(pr.windows, pr.replay_model.terrain, n_slices=2, params=("zeta",), n_boot=0)
-    prop = propose_terms(pr, cal.values)
-    # The hidden force is −b·v_z on every patch in contact, so per foot it is −b·n(depth)·v_z:
-    # the fit may name it v_z (realisation of the reference plant: −26.6 ± 2.3 N·s/m per
-    # foot, truth −20) or depth·v_z (the compiled plant's realisation of the same seed:
-    # −4.4e3 N·s/m²). Either is a damping: a sink-rate term whose force opposes the sinking.
-    vz = [t for t in prop.terms if t.axis == "z" and t.feature in ("v_z", "depth_v_z")]
-    assert vz, prop.terms
-    assert all(t.coefficient_foot < 0.0 for t in vz), vz
-    plain = [t for t in vz if t.feature == "v_z"]
-    if plain:
-        assert -60.0 < plain[0].coefficient_foot < -6.7     # truth −20 N·s/m per foot
-    assert next(a for a in prop.axes if a.axis == "z").heldout_error_reduction_selected > 0.3
+    found = []
+    for seed in (31, 32, 33):
+        clean = tmp_path / f"clean{seed}"
+        synthesize("sand_walk", clean, speeds=(0.15, 0.25, 0.35), steps=7, seed=seed,
+                   effects=["_test_hidden_damping:b=10"], noise=0.0, format="parquet")
+        noisy = noisy_copy(clean, tmp_path / f"noisy{seed}", 1.0, seed=seed)
+        pr = load_problem(noisy)
+        cal = calibrate(pr.windows, pr.replay_model.terrain, n_slices=2, params=("zeta",),
+                        n_boot=0)
+        prop = propose_terms(pr, cal.values, seed=seed)
+        # −b·v_z on every patch in contact is −b·n(depth)·v_z per foot: the fit may name it
+        # v_z, depth·v_z or both. Either is a damping: at the median depth of the sinking
+        # samples it was fitted on, the net sink-rate coefficient opposes the sinking.
+        vz = {t.feature: t.coefficient_foot for t in prop.terms
+              if t.axis == "z" and t.feature in ("v_z", "depth_v_z")}
+        if not vz:
+            continue
+        depth = float(np.median(sample_columns(pr.windows)["depth"]))
+        net = vz.get("v_z", 0.0) + vz.get("depth_v_z", 0.0) * depth           # N·s/m, foot
+        assert -60.0 < net < -6.7, (seed, depth, vz)                         # truth −20
+        z = next(a for a in prop.axes if a.axis == "z")
+        assert z.proposed and z.heldout_error_reduction_selected > 0.3
+        found.append(seed)
+    assert len(found) >= 2, found

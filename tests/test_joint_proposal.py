@@ -16,7 +16,8 @@ from granular_mpc.effects import effect_info, load_effect_file
 from granular_mpc.robot.model import load_biped
 from granular_mpc.rotations import matrix_from_quat_xyzw
 from granular_mpc.validation.diagnosis.joint_proposal import (
-    PROPOSED_JOINT, PROPOSED_SENSOR, fit_joint_terms, joint_effect_source, joint_samples, joint_torque)
+    MAX_SENSOR_GAIN, MIN_EXPLAINED_RMS, PROPOSED_JOINT, PROPOSED_SENSOR, fit_joint_terms,
+    joint_effect_source, joint_passes, joint_samples, joint_torque, sensor_gain)
 
 RATE = 500.0
 B_VISCOUS = 0.4          # hidden viscous joint torque −b·q̇ [N·m·s/rad]
@@ -113,8 +114,9 @@ def test_emitted_effect_file_loads_and_reproduces_the_fit(biped, damped, tmp_pat
     _, (terms, fits) = damped
     path = tmp_path / "proposed_joint_file.py"
     path.write_text(joint_effect_source(terms, fits, biped.joint_names), encoding="utf-8")
-    names = load_effect_file(str(path))
-    assert PROPOSED_JOINT in names
+    # (load_effect_file returns the names new to the registry: another test may have
+    # registered the same effect already; replace=True makes this file's definition current)
+    load_effect_file(str(path))
     info = effect_info(PROPOSED_JOINT)
     assert info.kind == "joint"
     p = info.resolve_params({})
@@ -138,9 +140,32 @@ def test_a_torque_gain_is_proposed_as_a_sensor_effect(biped, tmp_path):
         assert abs(c + gain / (1 + gain)) < 0.15 * gain / (1 + gain)
     path = tmp_path / "proposed_sensor_file.py"
     path.write_text(joint_effect_source(terms, fits, biped.joint_names), encoding="utf-8")
-    assert PROPOSED_SENSOR in load_effect_file(str(path))
+    load_effect_file(str(path))                     # (see the test above)
     info = effect_info(PROPOSED_SENSOR)
     assert info.kind == "sensor"
     p = info.resolve_params({})
     j = next(iter(tau_terms))
     np.testing.assert_allclose(p[f"gain_{j}"], -tau_terms[j] / (1 + tau_terms[j]), rtol=1e-5)
+
+
+def test_joint_rule_needs_torque_above_null_and_a_plausible_gain():
+    """A joint is proposed when its held-out reductions pass, it explains more torque than
+    null data (:data:`MIN_EXPLAINED_RMS`), and a ``tau`` term means a plausible gain."""
+    strong = (0.6, 0.7, 0.5, 0.2)                   # explains √(0.25 − 0.04) = 0.46 N·m
+    assert joint_passes(*strong) and joint_passes(*strong, tau_coefficient=-0.2)
+    weak = (0.6, 0.7, 0.12, 0.8 * 0.12)             # explains 0.072 N·m: a null's knee
+    assert MIN_EXPLAINED_RMS > 0.072 and not joint_passes(*weak)
+    assert not joint_passes(0.05, 0.7, 0.5, 0.2)    # per-fold selection does not hold out
+    # c = −1.02: the measured torque is not the joint's (g = −62), not a gain error
+    assert sensor_gain(-0.2) == pytest.approx(0.25) and abs(sensor_gain(-1.02)) > 50
+    assert not joint_passes(*strong, tau_coefficient=-1.02)
+    assert not joint_passes(*strong, tau_coefficient=-0.5)      # g = 1 > MAX_SENSOR_GAIN
+    assert abs(sensor_gain(-0.3)) <= MAX_SENSOR_GAIN and joint_passes(*strong, tau_coefficient=-0.3)
+
+
+def test_each_joint_axis_effect_can_be_emitted_alone(biped, damped):
+    _, (terms, fits) = damped
+    text = joint_effect_source(terms, fits, biped.joint_names, effects=(PROPOSED_JOINT,))
+    assert text.startswith('"""') and text.count("@register_") == 1
+    assert f"--effect-file {PROPOSED_JOINT}.py" in text
+    assert joint_effect_source(terms, fits, biped.joint_names, effects=(PROPOSED_SENSOR,)) == ""

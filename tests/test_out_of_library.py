@@ -119,6 +119,9 @@ def test_cases_quick_and_full(ool):
     pair = next(c for c in full if c.group == "pair")
     assert len(pair.effects()) == 2 and pair.effects()[0] == pair.partner
     assert next(c for c in full if c.group == "null").effects() == []
+    # no forms (`--forms` with nothing): the null sets only
+    nulls = ool.build_cases([], [1], 2, False, ool.MISMATCHES)
+    assert [c.group for c in nulls] == ["null"] * len(ool.MISMATCHES)
 
 
 def _run(status, added, replay, rank1="", answer=False, fitted=None, worsened=()):
@@ -133,8 +136,8 @@ def test_scores_and_targets_table(ool):
     found = {"case": vd.__dict__,
              "lib": _run("missing_effect", ["cohesion"], {"intrusion_z": [0.008, 0.006]},
                          answer=True),
-             "proposal": {"file": "proposed_effect.py", "pointed_to": False,
-                          "terms": {"z:v_z": -13.0}},
+             "proposal": {"file": "proposed_effect.py", "files": ["proposed_force.py"],
+                          "pointed_to": False, "terms": {"z:v_z": -13.0}},
              "fb": _run("partially_explained", ["proposed_force"],
                         {"intrusion_z": [0.008, 0.002], "grf_z": [15.0, 10.0]},
                         fitted={"proposed_force": {"z_v_z": -11.0}}, worsened=["x"])}

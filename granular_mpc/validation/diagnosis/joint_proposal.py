@@ -43,7 +43,7 @@ from ...columns import (BASE_ANGULAR_VELOCITY, BASE_LINEAR_VELOCITY, BASE_POSITI
                         BASE_QUATERNION, GRF_COLUMNS, STANCE, joint_columns)
 from ...robot.model import Biped
 from ...rotations import matrix_from_quat_xyzw, xyzw_from_wxyz
-from .proposal_records import JointFit, JointTerm
+from .proposal_records import JointFit, JointTerm, change_text
 from .sparse import sparse_fit
 
 #: Savitzky–Golay window [s] and order of the derivative and of the matching smoothing
@@ -67,6 +67,12 @@ MIN_JOINT_REDUCTION = 0.15
 #: reduction of 30–35 %, and the left-foot force bias (no joint effect) 0.076–0.080 N·m;
 #: the joint and torque-sensor forms explain 0.135–0.98 N·m
 MIN_EXPLAINED_RMS = 0.1
+#: largest torque-sensor gain error |g| a ``tau`` term may imply (the bounds of the
+#: measurement family's ``torque_gain``): e = −g/(1+g)·τ_meas, so a coefficient near −1
+#: means the measured torque is not the joint's at all — on the benchmark's vertical
+#: damping (15 N·s/m) the swing knee's torque fights the sand still holding the trailing
+#: foot, c = −1.02, g = −62, which is no gain error (and no valid effect file)
+MAX_SENSOR_GAIN = 0.5
 #: fewest rows a joint fit needs
 MIN_ROWS = 200
 #: the joint features: name, unit of the feature, whether a joint effect can write it
@@ -214,6 +220,26 @@ def nuisance_matrix(s: JointSamples, j: int) -> np.ndarray:
     return np.column_stack([s.stance_leg[:, j], s.stance_leg[:, j] * s.grf_z])
 
 
+def sensor_gain(c: float) -> float:
+    """The torque-sensor gain error g a ``tau`` coefficient c means: τ_meas = (1 + g)·τ
+    gives e = −g/(1+g)·τ_meas, so g = −c/(1 + c) (∞ at c ≤ −1)."""
+    return -c / (1.0 + c) if c > -1.0 else float("inf")
+
+
+def joint_passes(heldout_reduction: float, heldout_reduction_selected: float,
+                 rms_before: float, rms_after: float, tau_coefficient: float | None = None
+                 ) -> bool:
+    """The evidence rule of one joint: the stable refit removes ≥ :data:`MIN_JOINT_REDUCTION`
+    of the held-out equation error (the per-fold selection half of that), the torque it
+    explains is ≥ :data:`MIN_EXPLAINED_RMS` [N·m], and a selected ``tau`` term
+    (``tau_coefficient``) means a gain error |g| ≤ :data:`MAX_SENSOR_GAIN`."""
+    explained = float(np.sqrt(max(rms_before ** 2 - rms_after ** 2, 0.0)))
+    gain_ok = tau_coefficient is None or abs(sensor_gain(tau_coefficient)) <= MAX_SENSOR_GAIN
+    return bool(heldout_reduction_selected >= MIN_JOINT_REDUCTION
+                and heldout_reduction >= 0.5 * MIN_JOINT_REDUCTION
+                and explained >= MIN_EXPLAINED_RMS and gain_ok)
+
+
 def fit_joint_terms(s: JointSamples, joint_names: Sequence[str], *, seed: int = 0
                     ) -> tuple[tuple[JointTerm, ...], tuple[JointFit, ...]]:
     """Sparse fit of every joint's equation error (:func:`.sparse.sparse_fit`)."""
@@ -226,10 +252,11 @@ def fit_joint_terms(s: JointSamples, joint_names: Sequence[str], *, seed: int = 
         fit = sparse_fit(feature_matrix(s, j)[rows], nuisance_matrix(s, j)[rows][:, :0]
                          if SWING_ONLY else nuisance_matrix(s, j), s.error[rows, j],
                          s.trial[rows], s.unit[rows], seed=seed)
-        explained = float(np.sqrt(max(fit.rmse_before ** 2 - fit.rmse_after ** 2, 0.0)))
-        ok = bool(fit.heldout_reduction_selected >= MIN_JOINT_REDUCTION
-                  and fit.heldout_reduction >= 0.5 * MIN_JOINT_REDUCTION
-                  and explained >= MIN_EXPLAINED_RMS and fit.selected.any())
+        tau_k = [f[0] for f in JOINT_FEATURES].index("tau")
+        ok = joint_passes(fit.heldout_reduction, fit.heldout_reduction_selected,
+                          fit.rmse_before, fit.rmse_after,
+                          float(fit.coef[tau_k]) if fit.selected[tau_k] else None) \
+            and bool(fit.selected.any())
         fits.append(JointFit(name, fit.heldout_reduction, fit.heldout_reduction_selected,
                              fit.rmse_before, fit.rmse_after, ok))
         if not ok:
@@ -281,17 +308,36 @@ def _bounds(c: float) -> tuple[float, float, float, float]:
 
 
 def joint_effect_source(terms: Sequence[JointTerm], fits: Sequence[JointFit],
-                        joint_names: Sequence[str]) -> str:
-    """The joint and torque-sensor proposal as plugin-format source (appended to the
-    proposal's effect file; empty when nothing is proposed)."""
-    jt = [t for t in terms if t.feature != "tau"]
-    st = [t for t in terms if t.feature == "tau"]
+                        joint_names: Sequence[str], effects: Sequence[str] | None = None,
+                        data: str = "") -> str:
+    """The joint and torque-sensor proposal as plugin-format source (empty when nothing
+    is proposed).
+
+    Args:
+        effects: emit only these of :data:`PROPOSED_JOINT` / :data:`PROPOSED_SENSOR`
+            (None: both, to be appended to the force proposal's source); with one name the
+            source is a file of its own (a module docstring first).
+        data: the data set's name, for that docstring.
+    """
+    keep = set(joint_effect_names(terms) if effects is None else effects)
+    jt = [t for t in terms if t.feature != "tau"] if PROPOSED_JOINT in keep else []
+    st = [t for t in terms if t.feature == "tau"] if PROPOSED_SENSOR in keep else []
+    terms = jt + st
     if not terms:
         return ""
     lines = ["", "", "# --- joint axis: " + JOINT_NOTE]
+    if effects is not None:
+        name = PROPOSED_JOINT if jt else PROPOSED_SENSOR
+        what = "a joint torque" if jt else "a torque-sensor gain error"
+        lines = ['"""A term proposed by `granular-mpc diagnose`' + (f" for {data}" if data else "")
+                 + f": `{name}`, {what}.", "",
+                 "A hypothesis, never added by the diagnosis that proposed it: pass this file",
+                 f"back alone with --effect-file {name}.py to have it refitted on the replays",
+                 "and judged like any candidate.", '"""', "", "# " + JOINT_NOTE]
     for f in fits:
-        lines.append(f"#   {f.joint}: held-out error −{100 * f.heldout_error_reduction_selected:.0f} % "
-                     f"(per fold −{100 * f.heldout_error_reduction:.0f} %), RMS "
+        lines.append(f"#   {f.joint}: held-out error "
+                     f"{change_text(f.heldout_error_reduction_selected)} "
+                     f"(per fold {change_text(f.heldout_error_reduction)}), RMS "
                      f"{f.rms_before:.3f} → {f.rms_after:.3f} N·m" + ("" if f.proposed else
                                                                      "  [not proposed]"))
     for t in terms:
@@ -321,7 +367,7 @@ def joint_effect_source(terms: Sequence[JointTerm], fits: Sequence[JointFit],
         # e = −g/(1+g)·τ_meas ⇒ the sensor reads (1 + g)·τ with g = −c/(1 + c)
         lines += ["", f"@register_sensor_effect({PROPOSED_SENSOR!r}, replace=True, params={{"]
         for t in st:
-            g = -t.coefficient / (1.0 + t.coefficient)
+            g = sensor_gain(t.coefficient)
             lo, hi, plo, phi = _bounds(g)
             doc = f"proposed torque-sensor gain error of {t.joint}: tau reads (1 + g)·τ"
             lines.append(f"    {'gain_' + t.joint!r}: Param({g:.6g}, {max(lo, -0.9):.6g}, "
@@ -342,8 +388,9 @@ def joint_report_lines(terms: Sequence[JointTerm], fits: Sequence[JointFit],
     if not fits:
         return [f"* joint axis: {note}"] if note else []
     lines = ["", "### Joint axis (proposed from the joint-torque equation error)", ""]
-    lines += [f"* {f.joint}: held-out equation error −{100 * f.heldout_error_reduction_selected:.0f} % "
-              f"(selection redone per fold −{100 * f.heldout_error_reduction:.0f} %), RMS "
+    lines += [f"* {f.joint}: held-out equation error "
+              f"{change_text(f.heldout_error_reduction_selected)} "
+              f"(selection redone per fold {change_text(f.heldout_error_reduction)}), RMS "
               f"{f.rms_before:.3f} → {f.rms_after:.3f} N·m"
               + ("" if f.proposed else " — nothing proposed") for f in fits]
     if terms:
@@ -366,5 +413,6 @@ def joint_effect_names(terms: Sequence[JointTerm]) -> tuple[str, ...]:
 
 __all__ = ["JointSamples", "joint_samples", "trial_equation_error", "kept_rows",
            "feature_matrix", "nuisance_matrix", "fit_joint_terms", "propose_joint_terms",
-           "joint_torque", "joint_effect_source", "joint_effect_names", "joint_report_lines", "JOINT_FEATURES",
-           "PROPOSED_JOINT", "PROPOSED_SENSOR", "MIN_JOINT_REDUCTION", "MIN_EXPLAINED_RMS", "JOINT_NOTE"]
+           "joint_torque", "joint_effect_source", "joint_effect_names", "joint_report_lines",
+           "JOINT_FEATURES", "PROPOSED_JOINT", "PROPOSED_SENSOR", "MIN_JOINT_REDUCTION",
+           "MIN_EXPLAINED_RMS", "JOINT_NOTE", "joint_passes", "sensor_gain", "MAX_SENSOR_GAIN"]

@@ -7,6 +7,13 @@ from dataclasses import dataclass, field
 from .records import OMIT_EMPTY, Record
 
 
+def change_text(reduction: float) -> str:
+    """A held-out error reduction as the signed change of the error: 0.83 → "−83 %",
+    −0.12 → "+12 %" (never "−-12 %")."""
+    v = -100.0 * float(reduction)
+    return f"{'−' if round(v) < 0 else '+'}{abs(v):.0f} %"
+
+
 @dataclass(frozen=True)
 class ProposedTerm(Record):
     """One selected feature of a proposed force.
@@ -56,6 +63,11 @@ class AxisFit(Record):
     threshold: float
     proposed: bool
 
+    @property
+    def explained_rms(self) -> float:
+        """The force the terms explain, √(rms_before² − rms_after²) [N]."""
+        return float(max(self.rms_before ** 2 - self.rms_after ** 2, 0.0) ** 0.5)
+
 
 @dataclass(frozen=True)
 class JointTerm(Record):
@@ -104,8 +116,9 @@ class Proposal(Record):
     """A term proposed from the force equation error when no library term may fit.
 
     Attributes:
-        effect: the proposed effect's name (as registered by ``file``).
-        file: the effect file written into the diagnosis folder (empty: none written).
+        effect: the proposed force effect's name (as registered by its file).
+        file: the effect file with every proposed effect, written into the diagnosis
+            folder (empty: none written).
         terms: the selected features (empty: nothing proposed).
         axes: per force axis, the fit's statistics.
         n_samples, n_stances: sinking samples and stances used.
@@ -116,6 +129,8 @@ class Proposal(Record):
             (:mod:`.joint_proposal`).
         joint_fits: per joint, that fit's statistics.
         joint_note: how the joint proposal was found (or why it was not available).
+        files: one effect file per proposed effect (``<effect>.py``, in the same folder):
+            each met its evidence rule and can be passed back alone.
     """
 
     effect: str
@@ -130,6 +145,7 @@ class Proposal(Record):
     joint_terms: tuple[JointTerm, ...] = field(default=(), metadata=OMIT_EMPTY)
     joint_fits: tuple[JointFit, ...] = field(default=(), metadata=OMIT_EMPTY)
     joint_note: str = field(default="", metadata=OMIT_EMPTY)
+    files: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
 
     @property
     def proposed(self) -> bool:
@@ -137,4 +153,4 @@ class Proposal(Record):
         return bool(self.terms) or bool(self.joint_terms)
 
 
-__all__ = ["ProposedTerm", "AxisFit", "Proposal", "JointTerm", "JointFit"]
+__all__ = ["change_text", "ProposedTerm", "AxisFit", "Proposal", "JointTerm", "JointFit"]

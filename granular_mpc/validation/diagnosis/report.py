@@ -15,7 +15,8 @@ from ..prepare import channel_unit
 from .coverage import coverage_section
 from .joint_proposal import joint_report_lines
 from .localization_records import Localization
-from .proposal_records import Proposal
+from .proposal import MIN_EXPLAINED_FORCE
+from .proposal_records import Proposal, change_text
 from .ranking_records import Ranked
 from .result import DIAGNOSIS_FILE, REPORT_FILE, Diagnosis
 from .thresholds import MIN_HELDOUT_REDUCTION, T_CELL
@@ -145,13 +146,18 @@ def proposal_section(p: Proposal | None) -> list[str]:
     if p is None:
         return []
     lines = ["", "## A term outside the library (proposed from the foot-force equation error)", ""]
-    lines += [f"* axis {a.axis}: held-out equation error −{100 * a.heldout_error_reduction_selected:.0f} % "
-              f"(selection redone per fold −{100 * a.heldout_error_reduction:.0f} %), RMS "
-              f"{a.rms_before:.2f} → {a.rms_after:.2f} N{'' if a.proposed else ' — nothing proposed'}"
-              for a in p.axes]
+    lines += [f"* axis {a.axis}: held-out equation error "
+              f"{change_text(a.heldout_error_reduction_selected)} "
+              f"(selection redone per fold {change_text(a.heldout_error_reduction)}), RMS "
+              f"{a.rms_before:.2f} → {a.rms_after:.2f} N (explains {a.explained_rms:.1f} N; "
+              f"needed: {MIN_EXPLAINED_FORCE[a.axis]:g} N, above what data without a missing "
+              "force explain)"
+              f"{'' if a.proposed else ' — nothing proposed'}" for a in p.axes]
     joint = joint_report_lines(p.joint_terms, p.joint_fits, p.joint_note)
-    file_line = ["", f"Effect file: `{p.file}` — a hypothesis, not added; pass it back with "
-                     f"`--effect-file {p.file}` to have it refitted and judged."] if p.file else []
+    each = ", ".join(f"`{f}`" for f in p.files)
+    file_line = ["", f"Effect files: {each} (one per proposed effect; all of them in "
+                     f"`{p.file}`) — hypotheses, not added; pass back the one you believe "
+                     "with `--effect-file FILE` to have it refitted and judged."] if p.file else []
     if not p.terms:
         return (lines + [f"* nothing proposed ({p.n_samples} sinking samples)"] + joint
                 + (file_line if p.joint_terms else []))
