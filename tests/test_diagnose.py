@@ -294,6 +294,27 @@ def test_an_all_zero_candidate_column_is_named():
     assert list(dead) == ["force_sensor_bias"] and "all zero" in dead["force_sensor_bias"]
 
 
+def test_a_candidate_whose_replays_diverged_is_not_ranked():
+    """A candidate undefined in more than MAX_DIVERGED_SHARE of the residual's cells would
+    take those rows from every other candidate: it is dropped, with a warning naming the
+    share; one undefined in fewer cells (or only where the residual is undefined) stays."""
+    from granular_mpc.validation.diagnosis import diverged_candidates
+    from granular_mpc.validation.diagnosis.candidates import MAX_DIVERGED_SHARE
+
+    cs = build_candidates(["force_sensor_bias", "inertial_drag"])
+    R = np.ones((10, 2, 5))
+    R[0] = np.nan                                   # 10 of 100 cells undefined anyway
+    sens = {c.key: np.ones_like(R) for cols in cs.columns.values() for c in cols}
+    n = int(np.isfinite(R).sum())
+    drag = sens["inertial_drag.c_d"]
+    drag[0] = np.nan                                # where R is undefined: costs nothing
+    drag.reshape(-1)[R.size - int(MAX_DIVERGED_SHARE * n):] = np.nan    # exactly the limit
+    assert diverged_candidates(cs, sens, R) == {}
+    drag.reshape(-1)[R.size - int(MAX_DIVERGED_SHARE * n) - 1] = np.nan  # one cell more
+    bad = diverged_candidates(cs, sens, R)
+    assert list(bad) == ["inertial_drag"] and "diverged in 11 %" in bad["inertial_drag"]
+
+
 # ----------------------------------------------------------------------------- pipeline
 def test_null_data_adds_nothing(workbench_diagnosis):
     d = workbench_diagnosis("null")

@@ -31,7 +31,7 @@ from .result import Diagnosis, FittedParameters, Verdict, load_diagnosis  # noqa
 from .acceptance import coefficient_checks, judge, remaining_cells
 from .acceptance_records import Acceptance, CoefficientCheck
 from .candidates import (CandidateSet, Column, build_candidates, candidate_columns,
-                         dead_candidates)
+                         dead_candidates, diverged_candidates)
 from .design import Design, GeometryRows, build_design
 from .localise import localize, where_summary
 from .localization_records import Localization
@@ -53,5 +53,5 @@ __all__ = ["diagnose", "Diagnosis", "Verdict", "FittedParameters", "load_diagnos
            "MIN_HELDOUT_REDUCTION", "MAX_DELTA_AICC", "MIN_INCLUSION", "MIN_STANCE_REDUCTION",
            "T_CELL", "MIN_EFFECT_SIZE", "LARGE_HELDOUT_REDUCTION", "Acceptance",
            "CoefficientCheck", "coefficient_checks", "judge", "remaining_cells",
-           "dead_candidates", "coefficient_text", "inclusion_ties", "share_inclusion",
+           "dead_candidates", "diverged_candidates", "coefficient_text", "inclusion_ties", "share_inclusion",
            "VerdictInputs", "decide", "error_change"]
