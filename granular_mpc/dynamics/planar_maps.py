@@ -18,6 +18,15 @@ from ..exceptions import ConfigError
 from ..robot.planar import FrontalView, SagittalView
 
 
+def _actuator_rows(q_a) -> tuple[np.ndarray, bool]:
+    """``q_a`` as (N, 6) rows [rad] and whether it was one (6,) vector."""
+    q_a = np.asarray(q_a, dtype=float)
+    qa = np.atleast_2d(q_a)
+    if qa.shape[1] != 6:
+        raise ConfigError(f"q_a must have 6 columns, got {q_a.shape}", key="q_a")
+    return qa, q_a.ndim == 1
+
+
 def sagittal_from_actuated(view: SagittalView, q_a, trunk_pitch) -> np.ndarray:
     """q^s from actuator angles and the trunk pitch (inverse of q_a = S_s q^s).
 
@@ -33,11 +42,7 @@ def sagittal_from_actuated(view: SagittalView, q_a, trunk_pitch) -> np.ndarray:
     Returns:
         (5,) or (N, 5) [θ_swing thigh, θ_swing calf, θ_stance thigh, θ_stance calf, θ_trunk].
     """
-    q_a = np.asarray(q_a, dtype=float)
-    single = q_a.ndim == 1
-    qa = np.atleast_2d(q_a)
-    if qa.shape[1] != 6:
-        raise ConfigError(f"q_a must have 6 columns, got {q_a.shape}", key="q_a")
+    qa, single = _actuator_rows(q_a)
     th_b = np.broadcast_to(np.asarray(trunk_pitch, dtype=float), (qa.shape[0],))
     out = np.empty((qa.shape[0], 5))
     out[:, 4] = th_b
@@ -88,11 +93,7 @@ def frontal_from_actuated(view: FrontalView, q_a, trunk_roll, *,
         q_a: (6,) or (N, 6) actuator angles [rad] (rates [rad/s]).
         trunk_roll: scalar or (N,) trunk roll about +x [rad] (rate [rad/s]).
     """
-    q_a = np.asarray(q_a, dtype=float)
-    single = q_a.ndim == 1
-    qa = np.atleast_2d(q_a)
-    if qa.shape[1] != 6:
-        raise ConfigError(f"q_a must have 6 columns, got {q_a.shape}", key="q_a")
+    qa, single = _actuator_rows(q_a)
     ph_b = np.broadcast_to(np.asarray(trunk_roll, dtype=float), (qa.shape[0],))
     st, sw = _abd_cols(view)
     k = 0.0 if velocity else 1.0
