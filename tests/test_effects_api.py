@@ -107,6 +107,32 @@ def test_load_effect_file_returns_effects_of_every_kind(tmp_path):
     assert f"j_{tag}" in registered_effects(kinds=KINDS)
 
 
+def test_load_effect_file_returns_its_names_when_loaded_again(tmp_path):
+    """A file that registers with ``replace=True`` (as ``diagnose``'s proposals do) returns
+    its names each time it is loaded, not only the first; an unrelated registration in
+    between is not among them."""
+    tag = uuid.uuid4().hex[:8]
+    path = tmp_path / "again.py"
+    path.write_text(textwrap.dedent(f'''\
+        from granular_mpc.effects import Param, register_joint_effect
+
+        @register_joint_effect("again_{tag}", replace=True, params={{"b": Param(1.0, 0.0, 2.0)}})
+        def joint(q, dq, p):
+            return -p["b"] * dq
+        '''))
+    assert load_effect_file(str(path)) == [f"again_{tag}"]
+    other = tmp_path / "other.py"
+    other.write_text(textwrap.dedent(f'''\
+        from granular_mpc.effects import Param, register_joint_effect
+
+        @register_joint_effect("other_{tag}", params={{"b": Param(1.0, 0.0, 2.0)}})
+        def joint(q, dq, p):
+            return -p["b"] * dq
+        '''))
+    assert load_effect_file(str(other)) == [f"other_{tag}"]
+    assert load_effect_file(str(path)) == [f"again_{tag}"]
+
+
 def test_load_effect_file_missing(tmp_path):
     with pytest.raises(ConfigError, match="effect file not found"):
         load_effect_file(str(tmp_path / "nope.py"))

@@ -33,7 +33,8 @@ from typing import Callable, Mapping, Sequence
 from ..exceptions import ConfigError
 from .params import Param, resolve_params
 from .registry import (KINDS, EffectInfo, EffectKind, all_effects, describe_effect, effect_info,
-                       effect_kind, get_effect, register, registered_effects, registered_names)
+                       effect_kind, get_effect, register, registered_effects,
+                       registrations)
 from .state import PatchState, SensorContext
 
 
@@ -115,7 +116,8 @@ def load_effect_file(path: str) -> list[str]:
         path: the ``.py`` file.
 
     Returns:
-        The names it registered (effects of every kind), sorted.
+        The names it registered (effects of every kind), sorted — also those it registered
+        again with ``replace=True`` (a file loaded twice returns its names both times).
 
     Raises:
         ConfigError: the file does not exist.
@@ -123,12 +125,12 @@ def load_effect_file(path: str) -> list[str]:
     p = Path(path)
     if not p.is_file():
         raise ConfigError(f"effect file not found: {p}", key="effects", value=str(p))
-    before = set(registered_names())
+    before = registrations()
     spec = importlib.util.spec_from_file_location(f"granular_mpc_user_{p.stem}", p)
     module = importlib.util.module_from_spec(spec)
     assert spec.loader is not None
     spec.loader.exec_module(module)
-    return sorted(set(registered_names()) - before)
+    return sorted(n for n, k in registrations().items() if before.get(n) != k)
 
 
 #: what a user's effect file may import (the decorators are defined here, the rest re-exported)

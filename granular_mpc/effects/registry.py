@@ -42,6 +42,7 @@ by fields with defaults, so that effects written before keep working.
 from __future__ import annotations
 
 import difflib
+import itertools
 from dataclasses import dataclass, field, replace
 from typing import Callable, Literal, Mapping, Sequence
 
@@ -109,6 +110,8 @@ class EffectInfo:
 Effect = EffectInfo
 
 _ENTRIES: dict[str, EffectInfo] = {}      # as declared (metadata defaults not filled in)
+_REGISTRATIONS: dict[str, int] = {}        # name → serial number of its latest register()
+_SERIAL = itertools.count(1)
 
 
 def check_name(name: str, what: str = "effect") -> str:
@@ -171,6 +174,7 @@ def register(entry: EffectInfo, *, replace_existing: bool = False) -> EffectInfo
     if entry.name in _ENTRIES and not replace_existing:
         raise ConfigError(f"effect '{entry.name}' is already registered (pass replace=True)")
     _ENTRIES[entry.name] = entry
+    _REGISTRATIONS[entry.name] = next(_SERIAL)
     return entry
 
 
@@ -274,6 +278,14 @@ def registered_names() -> tuple[str, ...]:
     return tuple(_ENTRIES)
 
 
+def registrations() -> dict[str, int]:
+    """Name → serial number of its latest registration (a re-registration with
+    ``replace=True`` gets a new one): which names a piece of code (re)registered is what
+    changed between two calls."""
+    return dict(_REGISTRATIONS)
+
+
 __all__ = ["EffectKind", "KINDS", "FORBIDDEN_NAME_CHARS", "NAME_FORM", "EffectInfo", "Effect",
            "check_name", "register", "describe_effect", "effect_info", "get_effect",
-           "effect_kind", "all_effects", "registered_effects", "registered_names"]
+           "effect_kind", "all_effects", "registered_effects", "registered_names",
+           "registrations"]
