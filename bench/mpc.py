@@ -9,7 +9,7 @@ ProxSuite's ``automatic`` backend, ``mu_in`` kept from solve to solve — the se
 issue 12's MPC pass, still the default: ``controller.mpc.qp: newton``) and ``new``
 (``controller.mpc.qp: scaled``, :data:`~granular_mpc.control.mpc.QP_SETTINGS`). Each
 replay starts from a fresh :class:`MPCData` and warm-starts along the recorded ticks, as the
-closed loop does; the assembly is identical in both (``qp_scaled`` only rescales it).
+closed loop does; the assembly is identical in both (``QPNumerics.scaled`` only rescales it).
 
 Prints per setting (suffix ``_old``; no suffix = new): ``mpc_assembly_ms_median`` (building
 the QP, ``MPCPlan.build_ms``), ``mpc_solve_ms_median`` / ``_p99`` (ProxSuite's update and

@@ -2,8 +2,6 @@
 of m g, warm starts that restart the inequality penalty, no false infeasibility (issue 12,
 docs/speed.md "The MPC tick")."""
 
-import dataclasses
-
 import numpy as np
 import pytest
 
@@ -18,11 +16,10 @@ INERTIA = np.array([[0.17, 0.0, 0.02], [0.0, 0.16, 0.0], [0.02, 0.0, 0.08]])
 N = 10
 
 
-def make(terrain, weight_sinkage=0.0, qp="scaled", **fields):
-    c = MPCConfig(horizon=N, dt=0.04, weight_sinkage=weight_sinkage)
-    mpc = CentroidalMPC(c, MASS, INERTIA, 9.81, ground_model(terrain, c), n_points=2,
-                        max_pairs=14).with_qp(qp)
-    return dataclasses.replace(mpc, **fields)
+def make(terrain, weight_sinkage=0.0, qp="scaled"):
+    c = MPCConfig(horizon=N, dt=0.04, weight_sinkage=weight_sinkage, qp=qp)
+    return CentroidalMPC(c, MASS, INERTIA, 9.81, ground_model(terrain, c), n_points=2,
+                         max_pairs=14)
 
 
 def walk_ticks(n: int, seed: int) -> list:
@@ -72,7 +69,7 @@ def test_scaled_and_newton_qps_have_the_same_optimum(sand):
     for kw, w_sink in zip(walk_ticks(4, seed=1), (0.0, 0.0, 1e3, 1e3)):
         plans = []
         for scaled in (True, False):
-            mpc, data = tight(make(sand, w_sink, qp_scaled=scaled))
+            mpc, data = tight(make(sand, w_sink, qp="scaled" if scaled else "newton"))
             plans.append(mpc.solve(data, **kw))
         assert all(p.status.ok for p in plans)
         np.testing.assert_allclose(plans[0].forces, plans[1].forces, rtol=0, atol=1e-3)
@@ -81,7 +78,7 @@ def test_scaled_and_newton_qps_have_the_same_optimum(sand):
 
 def test_force_unit_is_the_weight_when_scaled(sand):
     assert make(sand).force_unit == pytest.approx(MASS * 9.81)
-    assert make(sand, qp_scaled=False).force_unit == 1.0
+    assert make(sand, qp="newton").force_unit == 1.0
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -92,7 +89,7 @@ def test_warm_started_plans_land_at_the_optimum(sand, seed):
     ten times the measured worst median; no tick may fail (zero forces are feasible)."""
     mpc = make(sand)
     data = mpc.new_data()
-    ref_mpc = make(sand, qp_scaled=False)
+    ref_mpc = make(sand, qp="newton")
     errors = []
     for kw in walk_ticks(30, seed):
         plan = mpc.solve(data, **kw)
@@ -137,10 +134,12 @@ def test_qp_settings_are_chosen_by_the_config(sand):
     newtons, ``scaled`` puts them in units of m g; an unknown name is one clear error."""
     assert MPCConfig().qp == "newton"
     assert make(sand, qp="newton").force_unit == 1.0
-    assert make(sand, qp="newton").qp_mu_in_reset is None
+    assert make(sand, qp="newton").qp.mu_in_reset is None
     scaled = make(sand, qp="scaled")
-    assert scaled.qp_backend == "primal_dual_ldlt" and scaled.qp_mu_in_reset == 0.1
-    with pytest.raises(ConfigError, match="controller.mpc.qp"):
-        make(sand, qp="fast")
+    assert scaled.qp.backend == "primal_dual_ldlt" and scaled.qp.mu_in_reset == 0.1
+    assert make(sand, qp="newton").with_qp("scaled").qp == scaled.qp
+    with pytest.raises(ConfigError) as err:
+        scaled.with_qp("fast")
+    assert err.value.key == "controller.mpc.qp" and "newton" in err.value.allowed
     with pytest.raises(Exception, match="qp"):
         MPCConfig(qp="fast")

@@ -160,8 +160,7 @@ class WalkingController:
         schedule = GaitSchedule(config.gait)
         mpc = CentroidalMPC(config.mpc, biped.mass, inertia, biped.gravity, ground,
                             n_points=biped.config.foot.slices,
-                            max_pairs=max_contact_pairs(schedule, config.mpc)
-                            ).with_qp(config.mpc.qp)
+                            max_pairs=max_contact_pairs(schedule, config.mpc))
         wbc = WholeBodyController(config.wbc, biped, ground, config.swing.kp, config.swing.kd,
                                   n_points=biped.config.foot.slices)
         return cls(config, command, biped, terrain, ground, schedule, mpc, wbc, inertia,

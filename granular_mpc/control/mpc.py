@@ -42,15 +42,41 @@ from .solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
 
 BIG = 1e20
 
-#: The MPC QP's numerics by name (``MPCConfig.qp``): ``newton`` — the settings every
-#: documented result was measured with; ``scaled`` — forces in units of m g, the
-#: primal-dual LDLT backend, μ_in restarted at 0.1 on every warm-started solve and a primal
-#: infeasibility tolerance of 1e-6 (docs/speed.md, "The MPC tick (issue 12)").
-QP_SETTINGS: dict[str, dict] = {
-    "newton": dict(qp_backend="automatic", qp_scaled=False, qp_mu_in_reset=None,
-                   qp_eps_abs=1e-4, qp_eps_primal_inf=None),
-    "scaled": dict(qp_backend="primal_dual_ldlt", qp_scaled=True, qp_mu_in_reset=0.1,
-                   qp_eps_abs=1e-4, qp_eps_primal_inf=1e-6),
+@dataclass(frozen=True)
+class QPNumerics:
+    """How the MPC's QP is posed to ProxSuite (``MPCConfig.qp`` names one, :data:`QP_SETTINGS`).
+
+    Attributes:
+        backend: ProxSuite dense backend (``DENSE_BACKENDS`` of :mod:`.solvers.proxqp`).
+        scaled: QP variables in units of the robot's weight m g instead of newtons (the
+            forces' Hessian weight becomes ``weight_force``·(m g)² ≈ 0.1 instead of 1e-5);
+            the constraint rows stay in newtons, the box bounds are in m g.
+        mu_in_reset: the inequality penalty each warm-started solve restarts from
+            (:class:`ProxQPSolver`'s ``mu_in_reset``); None keeps the previous solve's.
+        eps_abs: ProxSuite's absolute tolerance (in the scaled units when ``scaled``).
+        eps_primal_inf: ProxSuite's primal infeasibility tolerance; the QP is feasible by
+            construction (zero forces satisfy every row), so an infeasibility verdict can
+            only be false. None: ProxSuite's default.
+    """
+
+    backend: str
+    scaled: bool
+    mu_in_reset: float | None
+    eps_abs: float
+    eps_primal_inf: float | None
+
+
+#: The MPC QP's numerics by name. ``newton`` (the default, every documented result):
+#: forces in newtons, ProxSuite's ``automatic`` backend (the primal LDLT for n_in = 2 n),
+#: μ_in kept from solve to solve. H's smallest eigenvalue is then the force weight, 1e-5,
+#: so eps_abs = 1e-4 fixes the forces only to ≈ 10 N (measured: warm-started plans land
+#: 4.6 N median, 16 N worst from the QP's optimum), and μ_in shrinks 0.1 → 1e-8 over ≈ 40
+#: ticks (the 1000-iteration solves of the p99). ``scaled`` fixes both (≈ 0.003 N from the
+#: optimum); it plans different forces, so it is opt-in until the documented results are
+#: re-measured with it (docs/speed.md, "The MPC tick (issue 12)").
+QP_SETTINGS: dict[str, QPNumerics] = {
+    "newton": QPNumerics("automatic", False, None, 1e-4, None),
+    "scaled": QPNumerics("primal_dual_ldlt", True, 0.1, 1e-4, 1e-6),
 }
 
 
@@ -122,30 +148,6 @@ class CentroidalMPC:
     ground: GroundModel
     n_points: int = 2
     max_pairs: int = 10         # most (step, foot) contacts in one horizon
-    #: The QP's numerics; :meth:`with_qp` sets them from ``MPCConfig.qp``. The defaults are
-    #: the ``newton`` settings: forces in newtons, ProxSuite's ``automatic`` backend (the
-    #: primal LDLT for n_in = 2 n), μ_in kept from solve to solve. H's smallest eigenvalue
-    #: is then the force weight, 1e-5, so eps_abs = 1e-4 fixes the forces only to ≈ 10 N
-    #: (measured: warm-started plans land 4.6 N median, 16 N worst from the QP's optimum),
-    #: and μ_in shrinks 0.1 → 1e-8 over ≈ 40 ticks (the 1000-iteration solves of the p99).
-    #: ``scaled`` (``QP_SETTINGS``) fixes both; it plans different forces, so it is opt-in
-    #: until the documented results are re-measured with it (docs/speed.md, "The MPC tick").
-    #: ProxSuite dense backend (``DENSE_BACKENDS``).
-    qp_backend: str = "automatic"
-    #: QP variables in units of the robot's weight m g instead of newtons (the forces'
-    #: Hessian weight becomes ``weight_force``·(m g)² ≈ 0.1 instead of 1e-5; scaled, the same
-    #: eps_abs lands ≈ 0.003 N median from the optimum). The constraint rows stay in
-    #: newtons; the box bounds are in m g.
-    qp_scaled: bool = False
-    #: ProxSuite's inequality penalty each warm-started solve restarts from
-    #: (:class:`ProxQPSolver`'s ``mu_in_reset``); None keeps the previous solve's.
-    qp_mu_in_reset: float | None = None
-    #: ProxSuite's absolute tolerance (in the scaled units when ``qp_scaled``).
-    qp_eps_abs: float = 1e-4
-    #: ProxSuite's primal infeasibility tolerance (:class:`ProxQPSolver`'s
-    #: ``eps_primal_inf``): the QP is feasible by construction (zero forces satisfy every
-    #: row), so an infeasibility verdict can only be false; None: ProxSuite's default.
-    qp_eps_primal_inf: float | None = None
 
     # ---------------------------------------------------------------- sizes
     @property
@@ -170,22 +172,29 @@ class CentroidalMPC:
         return self.max_pairs * self.rows_per_pair
 
     @property
+    def qp(self) -> QPNumerics:
+        """The QP's numerics, from the config (``controller.mpc.qp``)."""
+        return QP_SETTINGS[self.config.qp]
+
+    @property
     def force_unit(self) -> float:
-        """Force [N] of one unit of the QP's variables: m g when ``qp_scaled``, else 1."""
-        return self.mass * self.gravity if self.qp_scaled else 1.0
+        """Force [N] of one unit of the QP's variables: m g when ``qp.scaled``, else 1."""
+        return self.mass * self.gravity if self.qp.scaled else 1.0
 
     def with_qp(self, name: str) -> "CentroidalMPC":
-        """This MPC with the QP numerics ``name`` (a key of ``QP_SETTINGS``)."""
+        """This MPC with the QP numerics ``name`` (a key of :data:`QP_SETTINGS`) in its
+        config; the rest of the model is unchanged."""
         if name not in QP_SETTINGS:
-            raise ConfigError(f"unknown MPC QP settings {name!r}; allowed: "
-                              f"{', '.join(QP_SETTINGS)}", key="controller.mpc.qp", value=name)
-        return replace(self, **QP_SETTINGS[name])
+            raise ConfigError(f"unknown MPC QP settings {name!r}", key="controller.mpc.qp",
+                              value=name, allowed=", ".join(QP_SETTINGS))
+        return replace(self, config=self.config.model_copy(update={"qp": name}))
 
     def new_data(self) -> MPCData:
-        return MPCData(ProxQPSolver(self.nu, 0, self.n_in, box=True, eps_abs=self.qp_eps_abs,
-                                    max_iter=100, backend=self.qp_backend,
-                                    mu_in_reset=self.qp_mu_in_reset,
-                                    eps_primal_inf=self.qp_eps_primal_inf),
+        qp = self.qp
+        return MPCData(ProxQPSolver(self.nu, 0, self.n_in, box=True, eps_abs=qp.eps_abs,
+                                    max_iter=100, backend=qp.backend,
+                                    mu_in_reset=qp.mu_in_reset,
+                                    eps_primal_inf=qp.eps_primal_inf),
                        work=self._new_work())
 
     def _new_work(self) -> MPCWork:
@@ -278,7 +287,7 @@ class CentroidalMPC:
         G4 = np.where((m >= 0.0)[:, None, :, None], G4, 0.0)
         Gam = G4.reshape(N * nx, na)
         err = free - self._wrap_reference(x_ref, x0).ravel()
-        # the QP's variables: forces in units of fu (m g when scaled; see ``qp_scaled``)
+        # the QP's variables: forces in units of fu (m g when scaled; see ``QPNumerics``)
         fu = self.force_unit
         scaled = fu != 1.0
         Gs = Gam * fu if scaled else Gam
@@ -405,4 +414,4 @@ class CentroidalMPC:
         return U, "shifted+nominal" if shifted else "nominal"
 
 
-__all__ = ["CentroidalMPC", "MPCData", "MPCPlan", "MPCWork", "QP_SETTINGS", "rot_z", "skew"]
+__all__ = ["CentroidalMPC", "MPCData", "MPCPlan", "MPCWork", "QPNumerics", "QP_SETTINGS", "rot_z", "skew"]
