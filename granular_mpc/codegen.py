@@ -24,7 +24,6 @@ atomically (``os.replace``), so no process ever loads half a file.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import os
 import shutil
@@ -37,6 +36,7 @@ from typing import Sequence
 import casadi as ca
 
 from .exceptions import ModelError
+from .output import exclusive_lock
 
 #: optimisation flags (no -ffast-math: it would change fmin/fmax/NaN semantics)
 CFLAGS = ("-O3", "-fPIC", "-shared")
@@ -99,7 +99,7 @@ def compile_functions(prefix: str, functions: Sequence[ca.Function], *,
         key = hashlib.sha256(src + ca.__version__.encode() + " ".join(flags).encode())
         lib = cache / f"{prefix}_{key.hexdigest()[:20]}.so"
         if not lib.is_file():
-            with _build_lock(lib):
+            with exclusive_lock(lib.with_suffix(".lock")):    # one build; the others wait
                 if not lib.is_file():       # another process may have built it meanwhile
                     try:
                         _build(cc, flags, src_path, lib, prefix)
@@ -123,23 +123,6 @@ def _build(cc: str, flags: list[str], src_path: Path, lib: Path, prefix: str) ->
     partial = lib.with_suffix(f".{os.getpid()}.tmp")
     shutil.copyfile(out, partial)
     os.replace(partial, lib)                # atomic: parallel builds never see half a file
-
-
-@contextlib.contextmanager
-def _build_lock(lib: Path):
-    """Exclusive lock on ``<lib>.lock`` while one process builds ``lib`` (others wait);
-    a no-op where ``fcntl`` is missing (the atomic rename still keeps loads safe)."""
-    try:
-        import fcntl
-    except ImportError:                     # not POSIX: concurrent builds just duplicate work
-        yield
-        return
-    with open(lib.with_suffix(".lock"), "a+") as fh:
-        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
 
 
 __all__ = ["CFLAGS", "cache_dir", "compiler", "compile_functions"]

@@ -13,6 +13,7 @@ Safety rules of every output folder (``run``, ``sweep``, ``synth``):
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import json
 import math
@@ -244,5 +245,24 @@ def remove_files(paths: Iterable[Path]) -> None:
             raise OutputError(f"cannot replace {p}: {exc.strerror or exc}") from None
 
 
+@contextlib.contextmanager
+def exclusive_lock(lock_path: str | Path):
+    """Hold an exclusive ``fcntl`` lock on ``lock_path`` (created if missing) for the
+    ``with`` block; other processes asking for it wait. For work that several processes
+    may want at once and only one should do (a compiled library, a shared test data set).
+    A no-op where ``fcntl`` is missing: the processes then just duplicate the work."""
+    try:
+        import fcntl
+    except ImportError:                     # not POSIX
+        yield
+        return
+    with open(lock_path, "a+") as fh:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+
+
 __all__ = ["make_output_folder", "json_safe", "write_json", "OutputLock", "pid_alive",
-           "refuse_existing", "remove_files", "now_iso", "command_line"]
+           "refuse_existing", "remove_files", "now_iso", "command_line", "exclusive_lock"]

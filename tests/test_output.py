@@ -3,12 +3,13 @@ from __future__ import annotations
 
 import json
 import math
+import threading
 
 import numpy as np
 import pytest
 
 from granular_mpc.exceptions import OutputError
-from granular_mpc.output import json_safe, make_output_folder, write_json
+from granular_mpc.output import exclusive_lock, json_safe, make_output_folder, write_json
 
 
 def test_json_safe_turns_numpy_and_non_finite_values_into_json():
@@ -42,3 +43,23 @@ def test_write_json_is_strict_and_leaves_no_temporary_file(tmp_path):
 def test_write_json_into_a_missing_folder_is_an_output_error(tmp_path):
     with pytest.raises(OutputError, match="cannot write"):
         write_json(tmp_path / "missing" / "s.json", {})
+
+
+def test_exclusive_lock_makes_a_second_holder_wait(tmp_path):
+    """A second ``exclusive_lock`` on the same file (here from a thread: ``flock`` locks
+    conflict between open file descriptions) gets it only after the first is released."""
+    lock = tmp_path / "x.lock"
+    events: list[str] = []
+
+    def second():
+        with exclusive_lock(lock):
+            events.append("second holds")
+
+    with exclusive_lock(lock):
+        t = threading.Thread(target=second)
+        t.start()
+        t.join(timeout=0.3)
+        assert t.is_alive() and events == []        # waiting, not holding
+        events.append("first releases")
+    t.join(timeout=5)
+    assert events == ["first releases", "second holds"]

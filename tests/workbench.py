@@ -10,13 +10,14 @@ assertion uses.
 """
 from __future__ import annotations
 
-import contextlib
 import os
 import warnings
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
+
+from granular_mpc.output import exclusive_lock
 
 #: three speeds × ≈ 7 stances: enough trials for trial-grouped cross-validation
 WB_SPEEDS = (0.15, 0.25, 0.35)
@@ -132,22 +133,6 @@ def diagnose_case(name: str, data: Path, out: Path | None, *, user_terms: bool =
     return d, [str(w.message) for w in caught if issubclass(w.category, UserWarning)]
 
 
-@contextlib.contextmanager
-def _exclusive(lock_path: Path):
-    """Exclusive ``fcntl`` lock on ``lock_path`` (a no-op where ``fcntl`` is missing)."""
-    try:
-        import fcntl
-    except ImportError:                     # not POSIX: parallel workers just duplicate work
-        yield
-        return
-    with open(lock_path, "a+") as fh:
-        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
-
-
 def build_once(out: Path, build: Callable[[Path], object]) -> Path:
     """``out`` built by ``build(out)`` once among the processes that share its folder.
 
@@ -159,7 +144,7 @@ def build_once(out: Path, build: Callable[[Path], object]) -> Path:
     done = out.with_name(out.name + ".done")
     if done.is_file():
         return out
-    with _exclusive(out.with_name(out.name + ".lock")):
+    with exclusive_lock(out.with_name(out.name + ".lock")):
         if not done.is_file():              # another worker may have built it meanwhile
             build(out)
             done.write_text(str(os.getpid()))
