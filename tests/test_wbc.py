@@ -16,6 +16,13 @@ from granular_mpc.control.solvers.proxqp import QPSolution, QPStatus
 from granular_mpc.control.wbc import WBCReference
 from granular_mpc.robot.kinematics import balanced_stance
 from granular_mpc.rotations import matrix_from_quat_xyzw, rot_z
+from granular_mpc.runner import build_simulation, closed_loop
+from granular_mpc.scenario import load_scenario
+
+
+def with_solver(wbc, solver: str):
+    """The same whole-body controller with ``controller.wbc.solver = solver``."""
+    return dataclasses.replace(wbc, config=wbc.config.model_copy(update={"solver": solver}))
 
 
 def record_solutions(data) -> list[QPSolution]:
@@ -50,9 +57,11 @@ def setup(biped, rigid):
     return ctrl, q, v
 
 
-def test_solution_satisfies_the_floating_base_dynamics(setup, biped):
+@pytest.mark.parametrize("solver", ["proxsuite", "daqp"])
+def test_solution_satisfies_the_floating_base_dynamics(setup, biped, solver):
     ctrl, q, v = setup
-    data = ctrl.wbc.new_data()
+    wbc = with_solver(ctrl.wbc, solver)
+    data = wbc.new_data()
     data.keep_residuals = True
     solutions = record_solutions(data)
     forces = np.zeros((2, 2, 3))
@@ -60,7 +69,7 @@ def test_solution_satisfies_the_floating_base_dynamics(setup, biped):
     pd = data.pin
     pin.framesForwardKinematics(biped.model, pd, q)
     feet = ctrl.foot_points(pd)
-    tau = ctrl.wbc.solve(data, q, v, reference(ctrl, q, (True, False), forces), feet)
+    tau = wbc.solve(data, q, v, reference(ctrl, q, (True, False), forces), feet)
     assert data.last_status.ok
     x = solutions[-1].x
     nv = biped.model.nv
@@ -92,10 +101,12 @@ def test_solution_satisfies_the_floating_base_dynamics(setup, biped):
     assert np.all(f[0, :, 2] >= 0.4 * biped.weight / 2)
 
 
-def test_force_cap_limits_the_loading_foot_on_sand(biped, sand):
+@pytest.mark.parametrize("solver", ["proxsuite", "daqp"])
+def test_force_cap_limits_the_loading_foot_on_sand(biped, sand, solver):
     ctrl = WalkingController.build(ControllerConfig(), CommandConfig(), biped, sand)
     q = balanced_stance(biped, clearance=-0.002)
-    data = ctrl.wbc.new_data()
+    wbc = with_solver(ctrl.wbc, solver)
+    data = wbc.new_data()
     solutions = record_solutions(data)
     pd = data.pin
     pin.framesForwardKinematics(biped.model, pd, q)
@@ -103,8 +114,8 @@ def test_force_cap_limits_the_loading_foot_on_sand(biped, sand):
     forces = np.zeros((2, 2, 3))
     forces[:, :, 2] = biped.weight / 4
     cap = np.array([15.0, 200.0])
-    ctrl.wbc.solve(data, q, np.zeros(biped.model.nv),
-                   reference(ctrl, q, (True, True), forces, force_cap=cap), feet)
+    wbc.solve(data, q, np.zeros(biped.model.nv),
+              reference(ctrl, q, (True, True), forces, force_cap=cap), feet)
     assert solutions[-1].status.ok
     f = solutions[-1].x[biped.model.nv:].reshape(2, 2, 3)
     # one capacity row per point, each within eps_abs: bound 15 N + n_points·eps_abs
@@ -211,3 +222,63 @@ def test_free_flyer_placement_is_the_quaternion_matrix(biped):
         q[3:7] = quat / np.linalg.norm(quat) * (1.0 + 1e-9 * rng.normal() * (i % 2))
         pin.forwardKinematics(model, data, q)
         assert np.array_equal(data.oMi[1].rotation, matrix_from_quat_xyzw(q[3:7]))
+
+
+@pytest.mark.parametrize("terrain_name", ["sand", "rigid"])
+def test_daqp_solves_the_qp_proxsuite_is_given(biped, sand, rigid, terrain_name):
+    """``controller.wbc.solver = "daqp"``: the QP (built in DAQP's own stacked arrays) is
+    the ProxSuite path's QP bit for bit, in every stance pair; DAQP's solution is the
+    ProxSuite one within ProxSuite's tolerance, and exact for the equalities."""
+    terrain = sand if terrain_name == "sand" else rigid
+    ctrl = WalkingController.build(ControllerConfig(), CommandConfig(), biped, terrain)
+    wbc_p, wbc_d = ctrl.wbc, with_solver(ctrl.wbc, "daqp")
+    dp, dd = wbc_p.new_data(), wbc_d.new_data()
+    assert np.shares_memory(dd.work.C_poly, dd.work.C)     # the polytope view writes into C
+    qp_p, qp_d = record_problems(dp), record_problems(dd)
+    sol_p, sol_d = record_solutions(dp), record_solutions(dd)
+    rng = np.random.default_rng(11)
+    nv = biped.model.nv
+    stances = [(True, True), (True, False), (False, True), (False, False)]
+    for trial in range(8):
+        q = balanced_stance(biped, clearance=-0.002 if terrain_name == "sand" else 0.0)
+        q[7:] += rng.normal(0.0, 0.05, nv - 6)
+        v = rng.normal(0.0, 0.2, nv)
+        pin.framesForwardKinematics(biped.model, dp.pin, q)
+        feet = ctrl.foot_points(dp.pin)
+        forces = np.zeros((2, 2, 3))
+        forces[:, :, 2] = biped.weight / 4
+        ref = reference(ctrl, q, stances[trial % 4], forces)
+        tau_p = wbc_p.solve(dp, q, v, ref, feet)
+        tau_d = wbc_d.solve(dd, q, v, ref, feet)
+        assert dd.last_status.ok and dp.last_status.ok
+        # τ = M_a q̈ + h_a − J_aᵀ f of two solutions equal to ProxSuite's eps_abs = 1e-5:
+        # measured ≤ 1.1e-6 N·m (torques up to 6.5 N·m); bound 1e-4 N·m
+        np.testing.assert_allclose(tau_d, tau_p, atol=1e-4)
+    for p, d in zip(qp_p, qp_d):
+        for key in QP_ARRAYS:
+            np.testing.assert_array_equal(p[key], d[key])
+    for p, sp, sd in zip(qp_p, sol_p, sol_d):
+        # DAQP: equalities in its working set, exact to round-off (measured ≤ 3.4e-13 N);
+        # ProxSuite's residual is up to its eps_abs (measured ≤ 1.8e-6 N)
+        assert np.abs(p["A"] @ sd.x - p["b"]).max() <= 1e-9
+        assert np.abs(p["A"] @ sp.x - p["b"]).max() <= 1e-5
+        # the solutions (q̈ up to 360 rad/s², forces): measured ≤ 3.5e-5 apart; bound 1e-3
+        np.testing.assert_allclose(sd.x, sp.x, atol=1e-3)
+
+
+def test_closed_loop_walks_with_daqp():
+    """A short sand walk with ``controller.wbc.solver=daqp`` through the public runner API:
+    no fall, no QP failure, and it moves forward."""
+    scenario = load_scenario("sim/sand_walk.yaml",
+                             ["sim.duration=2.5", "controller.wbc.solver=daqp"])
+    sim = build_simulation(scenario)
+    assert sim.controller.wbc.config.solver == "daqp"
+    state = sim.new_state()
+    for _ in closed_loop(sim, state):
+        pass
+    assert state.fall is None
+    assert state.controller.qp_failures == 0
+    wbc = [r for r in state.controller.records if r.kind == "wbc"]
+    assert len(wbc) >= 1000 and all(r.status == "solved" for r in wbc)
+    # 2.5 s with a 0.8 s start delay, then the ramp to 0.2 m/s: measured 0.134 m
+    assert state.plant.q[0] > 0.05

@@ -1,4 +1,4 @@
-"""Whole-body controller: one ProxSuite QP over generalised accelerations and contact forces.
+"""Whole-body controller: one QP over generalised accelerations and contact forces.
 
 Decision variables ``x = [q̈ (nv), f (2 feet × n_points × 3)]`` (swing-foot forces held at
 zero by box bounds, so the size never changes). Each tick:
@@ -15,6 +15,10 @@ on granular ground it predicts their motion instead of pinning them: a* is the c
 the MPC's planned sinkage rate, with no feedback on the foot's velocity — the sand decides
 how far the foot sinks and slips, and a controller that tried to hold the foot would pull
 it up and shorten the stance leg.
+
+The QP is solved by ProxSuite or DAQP (``controller.wbc.solver``). With DAQP the QP's
+arrays are views of the solver's own stacked arrays (:meth:`.DAQPSolver.new_problem`), so
+the compiled assembly writes straight into what DAQP reads and nothing is copied.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from ..config import WBCConfig
 from ..robot.model import SIDES, Biped
 from ..rotations import matrix_from_quat_xyzw, skew_rows
 from .contact_model import GroundModel
+from .solvers.daqp import DAQPSolver
 from .solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
 from .wbc_qp import AssemblyCaller, AssemblyConstants, compile_assembly
 
@@ -91,7 +96,8 @@ class FootPoints:
 class WBCWork:
     """Preallocated QP buffers of the WBC (fixed size: nv + 2·n_points·3 variables) and
     the config-only terms, built once per controller and refilled in place each tick
-    (ProxSuite copies them into its model)."""
+    (ProxSuite copies them into its model; with DAQP they are views of the solver's own
+    stacked problem, :meth:`.DAQPSolver.new_problem`, read without a copy)."""
 
     H: np.ndarray               # (n, n)
     g: np.ndarray               # (n,)
@@ -119,7 +125,7 @@ class WBCWork:
 
 @dataclass
 class WBCData:
-    solver: ProxQPSolver
+    solver: ProxQPSolver | DAQPSolver
     pin: pin.Data
     failures: int = 0
     solves: int = 0
@@ -163,10 +169,18 @@ class WholeBodyController:
         return 6 + 2 * self.n_points * self.ground.polytope.G.shape[0]
 
     def new_data(self) -> WBCData:
-        work = self._new_work()
-        return WBCData(ProxQPSolver(self.n, 6, self.n_in, box=True, eps_abs=1e-5, max_iter=100),
-                       self.biped.model.createData(), work=work,
+        solver = self._new_solver()
+        work = self._new_work(solver)
+        return WBCData(solver, self.biped.model.createData(), work=work,
                        assembly=self._bind_assembly(work))
+
+    def _new_solver(self) -> ProxQPSolver | DAQPSolver:
+        """The QP solver named by ``config.solver``, sized for this controller:
+        ``proxsuite`` (warm started, eps_abs 1e-5 — the WBC's tolerance since it was
+        written) or ``daqp`` (hot-started active set, exact to round-off)."""
+        if self.config.solver == "daqp":
+            return DAQPSolver(self.n, 6, self.n_in, box=True, max_iter=200)
+        return ProxQPSolver(self.n, 6, self.n_in, box=True, eps_abs=1e-5, max_iter=100)
 
     def _bind_assembly(self, work: WBCWork) -> AssemblyCaller | None:
         """The compiled assembly writing into ``work``'s QP arrays (None: NumPy assembly)."""
@@ -209,23 +223,36 @@ class WholeBodyController:
         tau_max = self.biped.torque_limits
         return -tau_max, tau_max, self.biped.idx_v - 6
 
-    def _new_work(self) -> WBCWork:
+    def _new_work(self, solver: ProxQPSolver | DAQPSolver | None = None) -> WBCWork:
+        """The QP buffers; for a :class:`DAQPSolver` they are views of its stacked arrays
+        (filled here with the same initial values as the ProxSuite path's own arrays)."""
         n, nv, n_in, nps = self.n, self.nv, self.n_in, self.n_points
         poly = self.ground.polytope.scaled(1.0 / nps)
         nr = poly.G.shape[0]
         rows = 3 + 3 + 2 * nps * 3          # orientation, CoM, both feet's contact points
-        C = np.zeros((n_in, n))
+        if isinstance(solver, DAQPSolver):
+            qp = solver.new_problem()
+            for arr, value in ((qp.H, 0.0), (qp.g, 0.0), (qp.A, 0.0), (qp.b, 0.0),
+                               (qp.C, 0.0), (qp.l, -BIG), (qp.u, 0.0), (qp.lb, -BIG),
+                               (qp.ub, BIG)):
+                arr.fill(value)
+        else:
+            qp = QPProblem(np.zeros((n, n)), np.zeros(n), np.zeros((6, n)), np.zeros(6),
+                           np.zeros((n_in, n)), np.full(n_in, -BIG), np.zeros(n_in),
+                           np.full(n, -BIG), np.full(n, BIG))
+        C = qp.C
         w = WBCWork(
-            H=np.zeros((n, n)), g=np.zeros(n), A=np.zeros((6, n)), b=np.zeros(6), C=C,
+            H=qp.H, g=qp.g, A=qp.A, b=qp.b, C=C,
             C_poly=C[6:, nv:].reshape(2 * nps, nr, 2 * nps, 3),
-            l=np.full(n_in, -BIG), u=np.zeros(n_in), lb=np.full(n, -BIG), ub=np.full(n, BIG),
+            l=qp.l, u=qp.u, lb=qp.lb, ub=qp.ub,
             J=np.zeros((rows, nv)), e=np.zeros(rows), w=np.zeros(rows),
             sw=np.sqrt(np.asarray(self.config.w_orientation, dtype=float)),
             h_point=poly.h, f_max_point=poly.f_max,
             diag_nv=np.arange(nv), diag_f=np.arange(nv, n), lower=np.tril_indices(nv, -1),
             C_tau_q=C[:6, :nv], C_tau_f=C[:6, nv:])
-        # every tick refills these arrays in place: one problem object over them
-        w.problem = QPProblem(w.H, w.g, w.A, w.b, w.C, w.l, w.u, w.lb, w.ub)
+        # every tick refills these arrays in place: one problem object over them (DAQP's
+        # own, which it then reads without a copy)
+        w.problem = qp
         return w
 
     # ------------------------------------------------------------------ the tick
@@ -234,7 +261,7 @@ class WholeBodyController:
         """Joint torques (actuator order) [N·m] for state (q, v) and the references."""
         w = data.work
         if w is None:
-            w = data.work = self._new_work()
+            w = data.work = self._new_work(data.solver)
             data.assembly = self._bind_assembly(w)     # its outputs are the new arrays
         nv = self.nv
         if data.assembly is not None and not data.keep_residuals:
@@ -422,12 +449,13 @@ class WholeBodyController:
         b = self.biped
         model, pd = b.model, data.pin
         a = data.assembly
+        if a.owner is not pd:
+            # the compiled assembly reads M, h and the CoM Jacobian where Pinocchio writes
+            # them (views of this Data's storage; the same numbers as copies, no copy)
+            a.bind_inputs(pd.M, pd.nle, pd.Jcom, owner=pd)
         pin.computeAllTerms(model, pd, q, v)
         pin.updateFramePlacements(model, pd)
         com = pin.centerOfMass(model, pd, _ACCELERATION, False)
-        a.M[:] = pd.M
-        a.h[:] = pd.nle
-        a.Jcom[:] = pd.Jcom
         fl, fr = b.foot_frame[SIDES[0]], b.foot_frame[SIDES[1]]
         a.J6[:6] = pin.getFrameJacobian(model, pd, fl, _LWA)
         a.J6[6:] = pin.getFrameJacobian(model, pd, fr, _LWA)

@@ -32,6 +32,7 @@ import casadi as ca
 import numpy as np
 
 from ..codegen import compile_functions, compiler
+from ..exceptions import SolverError
 
 BIG = 1e20
 
@@ -250,6 +251,21 @@ class AssemblyCaller:
             for i, a in enumerate(outputs):
                 buf.set_res(i, memoryview(a.reshape(-1)))
             self._calls[stance] = (buf, call)
+        self.owner = None       # what bound inputs belong to (:meth:`bind_inputs`)
+
+    def bind_inputs(self, M: np.ndarray, h: np.ndarray, Jcom: np.ndarray, owner=None) -> None:
+        """Read ``M``, ``h`` and ``Jcom`` straight from these arrays from now on, instead of
+        this object's own copies: e.g. the views of Pinocchio's ``Data.M``, ``Data.nle``,
+        ``Data.Jcom`` (column-major, stable storage), which saves three copies per call.
+        ``owner`` (kept alive, see :attr:`owner`) is the object whose storage they view."""
+        for arr, own in ((M, self.M), (h, self.h), (Jcom, self.Jcom)):
+            if arr.shape != own.shape or not arr.flags.f_contiguous or arr.dtype != np.float64:
+                raise SolverError(f"assembly input of shape {arr.shape} cannot replace one of "
+                                 f"{own.shape} (column-major float64 expected)")
+        self.M, self.h, self.Jcom, self.owner = M, h, Jcom, owner
+        for buf, _ in self._calls.values():
+            for i, a in enumerate((M, h, Jcom)):
+                buf.set_arg(i, memoryview(a.reshape(-1, order="A")))
 
     def __call__(self, stance: tuple[bool, bool]) -> None:
         self._calls[stance][1]()
