@@ -1,6 +1,7 @@
 """MPC tick benchmark: assembly and ProxSuite solve of the centroidal MPC, timed apart.
 
     python bench/mpc.py [--seconds 4] [--speed 0.2] [--terrain dry_sand] [--reps 5] [--json PATH]
+                        [--old-tree DIR]
 
 Records the MPC's inputs (``CentroidalMPC.solve``'s arguments) over a closed-loop run of
 ``sim/sand_walk.yaml`` (run from the repository root), then replays them ``--reps`` times
@@ -10,6 +11,10 @@ issue 12's MPC pass, still the default: ``controller.mpc.qp: newton``) and ``new
 (``controller.mpc.qp: scaled``, :data:`~granular_mpc.control.mpc.QP_SETTINGS`). Each
 replay starts from a fresh :class:`MPCData` and warm-starts along the recorded ticks, as the
 closed loop does; the assembly is identical in both (``QPNumerics.scaled`` only rescales it).
+With ``--old-tree DIR`` (another checkout, e.g. ``git archive HEAD | tar -x -C DIR``) its
+``granular_mpc/control/mpc.py`` is loaded as a module of this package (its own assembly and
+tick, this tree's config, ground model and ProxSuite wrapper) and replayed too, interleaved,
+with both settings: suffixes ``_oldtree`` (``scaled``) and ``_oldtree_newton``.
 
 Prints per setting (suffix ``_old``; no suffix = new): ``mpc_assembly_ms_median`` (building
 the QP, ``MPCPlan.build_ms``), ``mpc_solve_ms_median`` / ``_p99`` (ProxSuite's update and
@@ -24,8 +29,11 @@ medians over reps × ticks (the first tick of each replay, a cold start, exclude
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import os
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from _report import emit
@@ -66,6 +74,19 @@ def old_settings(mpc):
 def new_settings(mpc):
     """The MPC with ``controller.mpc.qp: scaled`` (same assembly, rescaled)."""
     return mpc.with_qp("scaled")
+
+
+def old_tree_mpc(mpc, tree: str):
+    """``mpc``'s model (same numbers) built by the ``CentroidalMPC`` of the checkout
+    ``tree``: its ``control/mpc.py`` loaded as ``granular_mpc.control.mpc_oldtree``."""
+    name = "granular_mpc.control.mpc_oldtree"
+    spec = importlib.util.spec_from_file_location(
+        name, Path(tree) / "granular_mpc" / "control" / "mpc.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module.CentroidalMPC(mpc.config, mpc.mass, mpc.inertia_B, mpc.gravity, mpc.ground,
+                                mpc.n_points, mpc.max_pairs)
 
 
 def replay(mpc, ticks, keep_qps: bool = False) -> dict:
@@ -138,12 +159,17 @@ def main(argv=None) -> dict:
     ap.add_argument("--terrain", default="dry_sand", help="plant terrain (models/terrain)")
     ap.add_argument("--reps", type=int, default=5, help="replays per setting, interleaved")
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    ap.add_argument("--old-tree", default=None,
+                    help="another checkout whose control/mpc.py is replayed too")
     args = ap.parse_args(argv)
 
     with threadpool_limits(limits=1, user_api="blas"):   # as the closed loop runs
         mpc, ticks = record_ticks(args.seconds, args.speed, args.terrain)
         load0 = os.getloadavg()[0]
         models = {"new": new_settings(mpc), "old": old_settings(mpc)}
+        if args.old_tree:
+            old = old_tree_mpc(mpc, args.old_tree)
+            models.update(oldtree=new_settings(old), oldtree_newton=old_settings(old))
         runs: dict = {name: [] for name in models}
         dist: dict = {}
         for rep in range(max(1, args.reps)):
@@ -155,7 +181,7 @@ def main(argv=None) -> dict:
     figs = figures(runs, dist, (load0,))
     figs["mpc_ticks"] = float(len(ticks))
     units = {}
-    for sfx in ("_old", ""):
+    for sfx in ("_old", "", "_oldtree", "_oldtree_newton"):
         units.update({f"_ms_median{sfx}": "ms", f"_ms_p99{sfx}": "ms", f"_ms_mean{sfx}": "ms",
                       f"_n_median{sfx}": "N", f"_n_max{sfx}": "N"})
     emit(figs, args.json, units)

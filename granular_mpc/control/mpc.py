@@ -24,6 +24,10 @@ largest number of such pairs any horizon of the gait can contain (N for a single
 gait, a few more with double support); unused blocks are padding held at zero. The ground
 polytope's cone rows (friction-like, no bound) hold for each contact point, its capacity
 rows (with a bound) for the foot's total force.
+
+The QP is built each tick by generated C (:mod:`.mpc_assembly`, the condensation in
+closed form) or, with ``assembly="numpy"`` and wherever nothing can be compiled, by the
+NumPy code below (the stacked condensed map): the same QP to round-off.
 """
 
 from __future__ import annotations
@@ -38,9 +42,13 @@ from ..config import MPCConfig
 from ..exceptions import ConfigError
 from ..rotations import rot_z, skew, skew_rows
 from .contact_model import GroundModel
+from .mpc_assembly import MPCAssemblyCaller, MPCAssemblyConstants, compile_assembly
 from .solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
 
 BIG = 1e20
+
+#: how the QP is built (``CentroidalMPC.assembly``)
+ASSEMBLIES = ("compiled", "numpy")
 
 @dataclass(frozen=True)
 class QPNumerics:
@@ -123,6 +131,8 @@ class MPCWork:
     u: np.ndarray               # (n_in,)
     lb: np.ndarray              # (nu,)
     ub: np.ndarray              # (nu,)
+    block_index: np.ndarray | None = None       # arange(max_pairs)
+    assembly: MPCAssemblyCaller | None = None   # the compiled assembly (None: NumPy)
 
 
 @dataclass
@@ -148,6 +158,11 @@ class CentroidalMPC:
     ground: GroundModel
     n_points: int = 2
     max_pairs: int = 10         # most (step, foot) contacts in one horizon
+    #: how the QP is built each tick: ``compiled`` (the assembly generated to C,
+    #: :mod:`.mpc_assembly`; NumPy where no C compiler exists) or ``numpy``
+    #: (the stacked condensed map, the code before the compiled assembly). The same QP to
+    #: round-off (≤ 1e-15 of each array's largest entry, tests/test_mpc_assembly.py).
+    assembly: str = "compiled"
 
     # ---------------------------------------------------------------- sizes
     @property
@@ -201,7 +216,7 @@ class CentroidalMPC:
         poly = self.ground.polytope
         nu, n_in = self.nu, self.n_in
         C = np.zeros((n_in, nu))
-        return MPCWork(
+        work = MPCWork(
             q_rep=np.tile(self._q_diag(), self.N),
             inertia_inv_B=np.linalg.inv(self.inertia_B),
             steps=np.arange(1, self.N + 1, dtype=float)[:, None],
@@ -209,7 +224,38 @@ class CentroidalMPC:
             h_capacity=poly.h[poly.capacity_rows],
             H=np.zeros((nu, nu)), g=np.zeros(nu), C=C,
             C4=C.reshape(self.max_pairs, self.rows_per_pair, self.max_pairs, self.nu_pair),
-            l=np.full(n_in, -BIG), u=np.zeros(n_in), lb=np.zeros(nu), ub=np.zeros(nu))
+            l=np.full(n_in, -BIG), u=np.zeros(n_in), lb=np.zeros(nu), ub=np.zeros(nu),
+            block_index=np.arange(self.max_pairs))
+        if self.assembly not in ASSEMBLIES:
+            raise ConfigError(f"unknown MPC assembly {self.assembly!r}", key="assembly",
+                              value=self.assembly, allowed=", ".join(ASSEMBLIES))
+        if self.assembly == "compiled":
+            constants = self.assembly_constants()
+            fns = compile_assembly(constants.sizes)
+            if fns is not None:
+                work.assembly = MPCAssemblyCaller(fns, constants, (work.H, work.g, work.C,
+                                                                   work.u, work.lb, work.ub))
+        return work
+
+    def assembly_constants(self) -> MPCAssemblyConstants:
+        """The numbers the compiled assembly takes (its sizes, and the model's numbers it is
+        handed each call: mass, inertia, weights, polytope, force unit)."""
+        poly = self.ground.polytope
+        nps = self.n_points
+        cone, capr = poly.G[poly.cone_rows], poly.G[poly.capacity_rows]
+        nc = cone.shape[0]
+        rows_point = np.zeros((self.rows_per_pair, nps, 3))
+        for i in range(nps):      # cone rows on each point, capacity rows on their sum
+            rows_point[i * nc:(i + 1) * nc, i] = cone
+            rows_point[nps * nc:, i] = capr
+        c = self.config
+        return MPCAssemblyConstants(
+            horizon=self.N, n_points=nps, max_pairs=self.max_pairs, dt=float(c.dt),
+            mass=float(self.mass), gravity=float(self.gravity),
+            inertia_inv_B=tuple(np.linalg.inv(self.inertia_B).ravel().tolist()),
+            q=tuple(self._q_diag().tolist()), weight_force=float(c.weight_force),
+            force_unit=float(self.force_unit), rows_point=tuple(rows_point.ravel().tolist()),
+            h_capacity=tuple(poly.h[poly.capacity_rows].tolist()), f_max=float(poly.f_max))
 
     # ---------------------------------------------------------------- weights
     def _q_diag(self) -> np.ndarray:
@@ -240,6 +286,49 @@ class CentroidalMPC:
         w = data.work
         if w is None:
             w = data.work = self._new_work()
+        # one variable block per (step, foot in contact), in (step, foot) order
+        ks, fs = np.nonzero(contacts)
+        if len(ks) > self.max_pairs:   # more contacts than planned for: keep the loaded ones
+            keep = np.sort(np.argsort(-nominal_load[ks, fs], kind="stable")[: self.max_pairs])
+            ks, fs = ks[keep], fs[keep]
+        P = len(ks)
+        na = P * self.nu_pair          # active variables
+        if w.assembly is not None:
+            states_of = self._assemble_compiled(w, x0, x_ref, points, capacity, ks, fs)
+        else:
+            states_of = self._assemble_numpy(w, x0, x_ref, points, capacity, ks, fs)
+        if self.config.weight_sinkage > 0.0 and self.ground.granular and P:
+            self._add_sinkage_cost(w, nominal_load[ks, fs])
+        if w.assembly is None:      # (the compiled H is symmetric to the last bit)
+            w.H += w.H.T
+            w.H *= 0.5
+        build_ms = (time.perf_counter() - t0) * 1e3
+        sol = data.solver.solve(QPProblem(w.H, w.g, None, None, w.C, w.l, w.u, w.lb, w.ub))
+        data.solves += 1
+        fallback = ""
+        fu = self.force_unit
+        if sol.status.ok:
+            U = sol.x * fu if fu != 1.0 else sol.x
+        else:
+            data.failures += 1
+            U, fallback = self._fallback(data, t, list(zip(ks.tolist(), fs.tolist())),
+                                         nominal_load)
+        N, nps = self.N, self.n_points
+        forces = np.zeros((N, 2, nps, 3))
+        forces[ks, fs] = U[:na].reshape(P, nps, 3)
+        states = states_of(U)
+        sink = self._predicted_sinkage(forces, contacts)
+        plan = MPCPlan(t, forces, states, np.array(contacts, copy=True), sink, sol.status,
+                       sol.solve_ms, build_ms, fallback)
+        data.last = plan
+        return plan
+
+    # ---------------------------------------------------------------- assembly
+    def _assemble_numpy(self, w: MPCWork, x0, x_ref, points, capacity, ks, fs):
+        """Fill the QP buffers of ``w`` in NumPy, the stacked condensed map Γ (the reference,
+        and the path without a C compiler: the code before the compiled assembly, so a
+        closed loop with it is bit for bit what it was; ``solve`` symmetrises H after the
+        sinkage cost); returns ``U ↦ predicted states (N, 12)``."""
         c = self.config
         N, nx, nps, npair = self.N, 12, self.n_points, self.nu_pair
         dt = c.dt
@@ -247,11 +336,6 @@ class CentroidalMPC:
         Rz = rot_z(yaw)
         RzT = Rz.T
         I_W_inv = Rz @ w.inertia_inv_B @ RzT
-        # one variable block per (step, foot in contact), in (step, foot) order
-        ks, fs = np.nonzero(contacts)
-        if len(ks) > self.max_pairs:   # more contacts than planned for: keep the loaded ones
-            keep = np.sort(np.argsort(-nominal_load[ks, fs], kind="stable")[: self.max_pairs])
-            ks, fs = ks[keep], fs[keep]
         P = len(ks)
         na = P * npair                 # active variables
         # discrete input matrix of each pair, B_d = B dt + A B dt²/2 (A: Θ̇ ← R_zᵀω, ṗ ← v):
@@ -298,18 +382,6 @@ class CentroidalMPC:
         H[:na, :na] = Gs.T @ QG
         g[:na] = QG.T @ err
         H[np.arange(self.nu), np.arange(self.nu)] += c.weight_force * fu * fu
-        if c.weight_sinkage > 0.0 and self.ground.granular and P:
-            F0 = nominal_load[ks, fs]
-            z0 = np.array([self.ground.sinkage(f) for f in F0])
-            a = np.array([self.ground.sinkage_slope(f) for f in F0])
-            if scaled:      # z0 + a (F − F0) = z0 + (a fu)(u − F0/fu)
-                a, F0 = a * fu, F0 / fu
-            # (z0 + a (F_z − F0))², F_z = Σ of the foot's points
-            jz = (np.arange(P)[:, None] * npair + 3 * np.arange(nps)[None, :] + 2)
-            H[jz[:, :, None], jz[:, None, :]] += (2.0 * c.weight_sinkage * a * a)[:, None, None]
-            g[jz] += (2.0 * c.weight_sinkage * a * (z0 - a * F0))[:, None]
-        H += H.T
-        H *= 0.5
         # constraints: the polytope's cone rows (h = 0) on each contact point (a point's
         # friction / shear is bounded by its own normal force: no free moments), its
         # capacity rows (h > 0) on the foot's total force
@@ -342,24 +414,42 @@ class CentroidalMPC:
         ub3[:P, :, 2] = (poly.f_max * share / nps)[:, None]
         if scaled:
             ub3[:P, :, 2] /= fu
-        build_ms = (time.perf_counter() - t0) * 1e3
-        sol = data.solver.solve(QPProblem(H, g, None, None, w.C, w.l, w.u, w.lb, w.ub))
-        data.solves += 1
-        fallback = ""
-        if sol.status.ok:
-            U = sol.x * fu if scaled else sol.x
+        return lambda U: (free + Gam @ U[:na]).reshape(N, nx)
+
+    def _assemble_compiled(self, w: MPCWork, x0, x_ref, points, capacity, ks, fs):
+        """Fill the QP buffers of ``w`` with the compiled assembly (:mod:`.mpc_assembly`);
+        returns ``U ↦ predicted states (N, 12)``."""
+        a = w.assembly
+        a.sel.fill(0.0)
+        a.sel[w.block_index[:len(ks)], 2 * ks + fs] = 1.0
+        a.x0[:] = x0
+        a.xref[:] = x_ref
+        a.points[:] = points
+        if capacity is None:
+            a.capacity.fill(self.ground.polytope.f_max)
         else:
-            data.failures += 1
-            pairs = list(zip(ks.tolist(), fs.tolist()))
-            U, fallback = self._fallback(data, t, pairs, nominal_load)
-        forces = np.zeros((N, 2, nps, 3))
-        forces[ks, fs] = U[:na].reshape(P, nps, 3)
-        states = (free + Gam @ U[:na]).reshape(N, nx)
-        sink = self._predicted_sinkage(forces, contacts)
-        plan = MPCPlan(t, forces, states, np.array(contacts, copy=True), sink, sol.status,
-                       sol.solve_ms, build_ms, fallback)
-        data.last = plan
-        return plan
+            a.capacity[:] = capacity
+        a.qp()
+
+        def states(U: np.ndarray) -> np.ndarray:
+            a.U[:] = U
+            a.states()
+            return a.state_out.copy()
+        return states
+
+    def _add_sinkage_cost(self, w: MPCWork, F0: np.ndarray) -> None:
+        """Add the sinkage cost ``w_s Σ (Z(F̄) + Z'(F̄)(F_z − F̄))²`` of the active blocks
+        (nominal loads ``F0`` [N]) to ``w.H``, ``w.g`` (a symmetric term)."""
+        c, fu = self.config, self.force_unit
+        P, nps, npair = len(F0), self.n_points, self.nu_pair
+        z0 = np.array([self.ground.sinkage(f) for f in F0])
+        a = np.array([self.ground.sinkage_slope(f) for f in F0])
+        if fu != 1.0:       # z0 + a (F − F0) = z0 + (a fu)(u − F0/fu)
+            a, F0 = a * fu, F0 / fu
+        # (z0 + a (F_z − F0))², F_z = Σ of the foot's points
+        jz = (np.arange(P)[:, None] * npair + 3 * np.arange(nps)[None, :] + 2)
+        w.H[jz[:, :, None], jz[:, None, :]] += (2.0 * c.weight_sinkage * a * a)[:, None, None]
+        w.g[jz] += (2.0 * c.weight_sinkage * a * (z0 - a * F0))[:, None]
 
     # ---------------------------------------------------------------- helpers
     def _wrap_reference(self, x_ref: np.ndarray, x0: np.ndarray) -> np.ndarray:
@@ -414,4 +504,5 @@ class CentroidalMPC:
         return U, "shifted+nominal" if shifted else "nominal"
 
 
-__all__ = ["CentroidalMPC", "MPCData", "MPCPlan", "MPCWork", "QPNumerics", "QP_SETTINGS", "rot_z", "skew"]
+__all__ = ["ASSEMBLIES", "CentroidalMPC", "MPCData", "MPCPlan", "MPCWork", "QPNumerics",
+           "QP_SETTINGS", "rot_z", "skew"]
