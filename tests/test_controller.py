@@ -183,3 +183,22 @@ def test_foot_points_are_the_lowest_points_of_the_sole_slices(biped, sand):
                             for y in biped.slice_offsets])
             np.testing.assert_array_equal(feet[i].points, ref)
             np.testing.assert_array_equal(feet[i].offsets, ref - oMf.translation)
+
+
+def test_command_velocity_is_the_ticks_reference_or_the_ramps(biped, sand):
+    """The loop's ``cmd_vx, cmd_vy`` come from the tick at the same time (no second ramp
+    evaluation) and equal the ramp's reference there; at any other time, the ramp's."""
+    ctrl = WalkingController.build(ControllerConfig(), CommandConfig(speed=0.3, start_delay=0.1),
+                                   biped, sand)
+    q0 = balanced_stance(biped, clearance=-0.005)
+    plant = Plant(biped, sand, SimConfig(dt=5e-4))
+    d, cd = plant.new_data(q0), ctrl.new_data(q0)
+    t = 0.4                                  # inside the ramp: a non-zero, changing reference
+    ctrl.compute(cd, t, d.q, d.v)
+    v_tick = cd.command_velocity(t)
+    assert v_tick is cd.last_v_ref
+    np.testing.assert_array_equal(v_tick, cd.ramp.reference(t)[1])
+    assert v_tick[0] > 0.0
+    later = cd.command_velocity(t + 0.1)
+    np.testing.assert_array_equal(later, cd.ramp.reference(t + 0.1)[1])
+    assert later[0] > v_tick[0]

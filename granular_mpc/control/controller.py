@@ -24,6 +24,7 @@ from ..rotations import matrix_from_quat_xyzw, rot_z
 from ..terrain.base import TerrainModel
 from .contact_model import GroundModel, ground_model
 from .gait import LEFT, CommandRamp, GaitSchedule, foothold, predict_com, predict_dcm
+from .horizon import HorizonConstants, mean_point, plan_horizon, sole_depth
 from .mpc import CentroidalMPC, MPCData, MPCPlan
 from .swing import cycloid
 from .wbc import FootPoints, WBCData, WBCReference, WholeBodyController
@@ -108,6 +109,7 @@ class ControllerData:
     next_mpc: float = 0.0
     speed_integral: float = 0.0             # ∫(v_cmd − v_com,x) dt while walking [m]
     last_t: float | None = None
+    last_v_ref: np.ndarray | None = None    # the speed reference at last_t (x, y) [m/s]
     records: list = field(default_factory=list)
     last_tau: np.ndarray | None = None
 
@@ -117,6 +119,13 @@ class ControllerData:
     def qp_failures(self) -> int:
         return self.mpc.failures + self.wbc.failures
 
+    def command_velocity(self, t: float) -> np.ndarray:
+        """The speed reference (x, y) [m/s, W] at ``t`` [s]: the last tick's when ``t`` is
+        its time (no second evaluation of the ramp per tick), else the ramp's."""
+        if t == self.last_t and self.last_v_ref is not None:
+            return self.last_v_ref
+        return self.ramp.reference(t)[1]
+
     def trunk_heading(self) -> np.ndarray:
         """The trunk orientation the WBC holds, ``rot_z(origin[2])`` (3, 3), built at the
         first call and shared (read-only) by every later tick's reference."""
@@ -124,12 +133,6 @@ class ControllerData:
             self.heading = rot_z(float(self.origin[2]))
             self.heading.flags.writeable = False
         return self.heading
-
-
-def _mean_point(points: np.ndarray) -> np.ndarray:
-    """Mean of the rows of ``points`` (n, 3): ``points.mean(axis=0)``'s arithmetic (the
-    sum over rows, divided by n) without its Python wrapper."""
-    return np.add.reduce(points, axis=0) / len(points)
 
 
 @dataclass(frozen=True)
@@ -211,34 +214,36 @@ class WalkingController:
         lowest point is its centre ``p + y e_y`` plus the arc point
         ``R sin ψ e_x − R cos ψ e_z``, with ψ the world-down direction in the slice plane
         clipped to the sole's half-angle; ψ is the same for every slice of a foot."""
-        out = []
+        blocks = []
         R_arc, half, ys, frames = self._sole
         for fid in frames:
-            oMf = pdata.oMf[fid]
-            p = oMf.translation
-            px, py, pz = p.tolist()
-            # rows of R: (e_x, e_y, e_z) components along W's x, y, z
-            (xx, yx, zx), (xy, yy, zy), (xz, yz, zz) = oMf.rotation.tolist()
+            # the placement as one 4×4 list: rows (R row, p component), i.e. the
+            # components of (e_x, e_y, e_z) and p along W's x, y, z
+            (xx, yx, zx, px), (xy, yy, zy, py), (xz, yz, zz, pz), _ = \
+                pdata.oMf[fid].homogeneous.tolist()
             psi = min(max(math.atan2(-xz, zz), -half), half)
             s_, c_ = R_arc * math.sin(psi), -R_arc * math.cos(psi)
             ax, ay, az = s_ * xx + c_ * zx, s_ * xy + c_ * zy, s_ * xz + c_ * zz
             pts = [((px + y * yx) + ax, (py + y * yy) + ay, (pz + y * yz) + az) for y in ys]
-            # the points and their offsets from p (per component, the numbers of
-            # ``pts - p``) as one (2, n, 3) array: two contiguous halves
-            both = np.array((pts, [(x - px, y - py, z - pz) for x, y, z in pts]))
-            out.append(FootPoints(both[0], both[1]))
-        return out[0], out[1]
+            # the points and their offsets from p (per component, the numbers of ``pts - p``)
+            blocks += (pts, [(x - px, y - py, z - pz) for x, y, z in pts])
+        # both feet's points and offsets as one (4, n, 3) array (one NumPy call, for
+        # speed): four contiguous blocks
+        both = np.array(blocks)
+        return FootPoints(both[0], both[1]), FootPoints(both[2], both[3])
+
+    @cached_property
+    def _horizon(self) -> HorizonConstants:
+        """The MPC horizon's per-tick constants."""
+        return HorizonConstants.build(self.config.mpc, self.mpc.N, self.biped.weight,
+                                      self.ground, self.schedule, self.biped.slice_offsets,
+                                      self.com_height_ref, self.omega)
 
     @cached_property
     def _mass_gravity(self) -> tuple[float, np.ndarray]:
         """The robot's mass [kg] and the gravity acceleration (0, 0, −g) in W [m/s²]
         (per-tick constants; ``Biped.mass`` sums the bodies at every call)."""
         return self.biped.mass, np.array([0.0, 0.0, -self.biped.gravity])
-
-    @cached_property
-    def _slice_rows(self) -> np.ndarray:
-        """The sole slices' offsets as rows ``(0, y, 0)`` (n_slices, 3) [m, foot frame]."""
-        return np.array([[0.0, y, 0.0] for y in self.biped.slice_offsets])
 
     @cached_property
     def _sole(self) -> tuple:
@@ -250,9 +255,7 @@ class WalkingController:
 
     def _depth(self, fp: FootPoints) -> float:
         """Depth of a foot's lowest points below the surface [m]."""
-        # ndarray.sum's reduction called directly (the same sum, without its wrapper)
-        return float(self.ground.surface_height
-                     - np.add.reduce(fp.points[:, 2], None) / len(fp.points))
+        return sole_depth(self.ground.surface_height, fp.points)
 
     def _force_cap_now(self, feet) -> np.ndarray:
         """Normal force each foot may carry now [N]: the capacity at its depth plus the
@@ -264,21 +267,6 @@ class WalkingController:
         # point alone) without its array round trip
         cap = self.ground.capacity
         return np.array([cap(self._depth(feet[0]) + step), cap(self._depth(feet[1]) + step)])
-
-    def _stance_lever_points(self, fp: FootPoints, load: float) -> np.ndarray:
-        """Where a stance foot's points will be under ``load``: deeper by the sinkage still
-        to come (granular), else where they are."""
-        pts = fp.points.copy()
-        if self.ground.granular:
-            depth = self.ground.surface_height - pts[:, 2].mean()
-            extra = max(self.ground.sinkage(load) - depth, 0.0)
-            pts[:, 2] -= extra
-        return pts
-
-    def _landing_points(self, xy: np.ndarray, yaw: float, load: float) -> np.ndarray:
-        off = self._slice_rows @ rot_z(yaw).T
-        z = self.ground.surface_height - self.ground.sinkage(load)
-        return np.array([[xy[0] + o[0], xy[1] + o[1], z] for o in off])
 
     # ------------------------------------------------------------------ the tick
     def compute(self, d: ControllerData, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -309,6 +297,7 @@ class WalkingController:
             lim = fh.max_speed_correction / max(fh.k_speed_integral, 1e-9)
             d.speed_integral = float(min(max(d.speed_integral, -lim), lim))
         d.last_t = t
+        d.last_v_ref = v_ref
         # the command with the integral's correction on x (v_cmd's copy with [0] increased)
         v_step = np.array((v_ref[0] + fh.k_speed_integral * d.speed_integral, v_ref[1], 0.0))
         y_line = d.origin[1] + p_ref[1]
@@ -318,8 +307,8 @@ class WalkingController:
         # c + ċ/ω per component (the array form's numbers)
         dcm = np.array((com[0] + vcom[0] / omega, com[1] + vcom[1] / omega))
         st_feet = [i for i in range(2) if stance[i]]
-        p_st = (_mean_point(feet[st_feet[0]].points)[:2] if len(st_feet) == 1
-                else 0.5 * (_mean_point(feet[0].points)[:2] + _mean_point(feet[1].points)[:2]))
+        p_st = (mean_point(feet[st_feet[0]].points)[:2] if len(st_feet) == 1
+                else 0.5 * (mean_point(feet[0].points)[:2] + mean_point(feet[1].points)[:2]))
         max_lat = self.ground.lateral_ratio * self.config.mpc.com_height
         phases = [0.0, 0.0]             # swing phase of each swinging foot at t
         for i in range(2):
@@ -348,7 +337,7 @@ class WalkingController:
             R = matrix_from_quat_xyzw(q[3:7])
             rpy = pin.rpy.matrixToRpy(R)
             omega_W = R @ v[3:6]
-            self._run_mpc(d, t, com, vcom, rpy, omega_W, feet, stance, v_cmd, y_line, yaw_ref)
+            self._run_mpc(d, t, com, vcom, rpy, omega_W, feet, stance, v_cmd, yaw_ref)
             d.next_mpc = next_tick(d.next_mpc, t, 1.0 / self.config.mpc.rate_hz, first)
         plan = d.plan
         dt = self.config.mpc.dt
@@ -459,97 +448,17 @@ class WalkingController:
         d.last_tau = tau
         return tau
 
-    def _run_mpc(self, d, t, com, vcom, rpy, omega_W, feet, stance, v_cmd, y_line, yaw_ref):
-        b = self.biped
-        cfg = self.config.mpc
-        N, dt = self.mpc.N, cfg.dt
-        mg = b.weight
+    def _run_mpc(self, d, t, com, vcom, rpy, omega_W, feet, stance, v_cmd, yaw_ref):
+        """One MPC tick: the horizon's inputs (:func:`~granular_mpc.control.horizon.plan_horizon`),
+        then the solve; the plan goes to ``d.plan``."""
         t0 = time.perf_counter()
         x0 = np.concatenate([rpy, com, omega_W, vcom])
         x0[2] = yaw_ref + (x0[2] - yaw_ref + math.pi) % (2 * math.pi) - math.pi
-        x_ref = np.zeros((N, 12))
-        contacts = np.zeros((N, 2), dtype=bool)
-        load = np.zeros((N, 2))
-        points = np.zeros((N, 2, self.mpc.n_points, 3))
-        centres: list = [[None, None] for _ in range(N)]    # support centre (x, y) per foot
-        h_ref = self.ground.surface_height + self.com_height_ref
-        # expected footholds: current swing targets, then one stride further
-        stride = np.array([v_cmd[0] * self.schedule.period * 0.5, 0.0])
-        sched = self.schedule
-        # per foot, constant over the horizon: how long it stays down / until it lands
-        liftoff = [sched.time_to_liftoff(t, i) for i in range(2)]
-        touchdown = [sched.time_to_touchdown(t, i) for i in range(2)]
-        # the lever points depend only on (foot, stays down?, load): one evaluation each
-        lever_cache: dict = {}
-        centre_cache: dict = {}
-        for k in range(N):
-            tk = (k + 0.5) * dt
-            c = sched.contacts(t + tk)
-            contacts[k] = c
-            n_st = max(sum(c), 1)
-            for i in range(2):
-                if not c[i]:
-                    continue
-                load[k, i] = mg / n_st
-                down = bool(stance[i] and liftoff[i] >= tk)
-                key = (i, down, load[k, i])
-                pts = lever_cache.get(key)
-                if pts is None:
-                    if down:
-                        pts = self._stance_lever_points(feet[i], load[k, i])
-                    else:
-                        # lands within the horizon: its swing target, or one stride on
-                        xy = (d.target[i][:2] if d.target[i] is not None and not stance[i]
-                              else feet[i].points.mean(axis=0)[:2] + 2 * stride)
-                        pts = self._landing_points(xy, yaw_ref, load[k, i])
-                    lever_cache[key] = pts
-                    centre_cache[key] = pts[:, :2].mean(axis=0)
-                points[k, i] = pts
-                centres[k][i] = centre_cache[key]
-        # horizontal reference: the inverted pendulum rolled out over the planned supports,
-        # so the MPC supplies the forces the foothold plan assumes instead of braking the
-        # CoM toward a constant speed; height and attitude are regulated as usual
-        omega = self.omega
-        ch, sh = math.cosh(omega * dt), math.sinh(omega * dt)
-        px, py = float(com[0]), float(com[1])
-        vx, vy = float(vcom[0]), float(vcom[1])
-        for k in range(N):
-            cen = [cc for cc in centres[k] if cc is not None]
-            if cen:
-                sx, sy = (float(cen[0][0]), float(cen[0][1])) if len(cen) == 1 else \
-                    ((float(cen[0][0]) + float(cen[1][0])) / 2.0,
-                     (float(cen[0][1]) + float(cen[1][1])) / 2.0)
-                rx, ry = px - sx, py - sy
-                px, py, vx, vy = (sx + rx * ch + vx / omega * sh, sy + ry * ch + vy / omega * sh,
-                                  rx * omega * sh + vx * ch, ry * omega * sh + vy * ch)
-            else:
-                px, py = px + vx * dt, py + vy * dt
-            x_ref[k, 3], x_ref[k, 4], x_ref[k, 9], x_ref[k, 10] = px, py, vx, vy
-        x_ref[:, 2] = yaw_ref
-        x_ref[:, 5] = h_ref
-        capacity = None
-        if self.ground.granular:
-            rate = cfg.max_sink_rate
-            capacity = np.zeros((N, 2))
-            where, depths = [], []
-            for i in range(2):
-                depth_now = self._depth(feet[i])
-                for k in range(N):
-                    if not contacts[k, i]:
-                        continue
-                    if stance[i] and liftoff[i] >= (k + 0.5) * dt:
-                        depth = depth_now + rate * (k + 1) * dt
-                    else:   # lands within the horizon, at the surface
-                        since = (k + 1) * dt - touchdown[i]
-                        depth = rate * max(since, 0.0)
-                    where.append((k, i))
-                    depths.append(depth)
-            if where:
-                # one interpolation for all (ground.capacity's numbers point by point)
-                kk, ii = zip(*where)
-                capacity[list(kk), list(ii)] = self.ground.capacities(depths)
-        plan = self.mpc.solve(d.mpc, t=t, x0=x0, x_ref=x_ref, contacts=contacts,
-                              points=points, nominal_load=load, capacity=capacity)
+        hz = plan_horizon(self._horizon, self.schedule, self.ground, t=t, stance=stance,
+                          feet=feet, targets=d.target, v_x=v_cmd[0], yaw=yaw_ref, com=com,
+                          vcom=vcom)
+        plan = self.mpc.solve(d.mpc, t=t, x0=x0, x_ref=hz.x_ref, contacts=hz.contacts,
+                              points=hz.points, nominal_load=hz.load, capacity=hz.capacity)
         d.plan = plan
         d.records.append(TickRecord(t, "mpc", plan.status.value, plan.solve_ms,
                                     (time.perf_counter() - t0) * 1e3, plan.fallback))

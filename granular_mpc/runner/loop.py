@@ -166,7 +166,7 @@ def _step_rows(sim: Simulation, state: LoopState | None) -> Iterator[dict]:
             if walk:
                 # one dict display: the same keys, order and values as the former
                 # dict + update(solver_columns) + update(push) calls
-                _, v_ref, _ = cd.ramp.reference(t)
+                v_ref = cd.command_velocity(t)      # the tick's, when it ran at t
                 fx, fy, fz = ((float(active.wrench[0]), float(active.wrench[1]),
                                float(active.wrench[2])) if active is not None
                               else (0.0, 0.0, 0.0))
