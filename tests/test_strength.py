@@ -12,7 +12,7 @@ from granular_mpc.effects import effect_info
 from granular_mpc.validation.diagnosis import (Column, Design, ParamEstimate, Ranked,
                                                Regression, candidate_stats)
 from granular_mpc.validation.diagnosis.localization_records import Localization
-from granular_mpc.validation.diagnosis.strength import StrengthTwin, strength_twin
+from granular_mpc.validation.diagnosis.strength import StrengthModel, StrengthTwin, strength_twin
 from granular_mpc.validation.diagnosis.verdict import (VerdictInputs, best_candidate_statement,
                                                        decide)
 
@@ -104,3 +104,64 @@ def test_the_verdict_names_the_twin_and_adds_nothing():
     assert "calibration matter" in best and "is the answer" not in best
     # the signs of the held-out changes: 26 % less alone, 3.7 % more beside φ_s
     assert "alone by −26.0 %" in tw.sentence() and "beside φ_s by +3.7 %" in tw.sentence()
+
+
+def _shapes(seed: int, n_groups: int = 6, n_rows: int = 300):
+    """Rows of a φ_s mismatch far outside the linear range: the plant's response to the
+    strength (``chord``, from the file's 38° to the plant's 33°) is not the derivative at
+    38° (``slope``), and a depth-dependent candidate (``dh``) shares the difference."""
+    rng = np.random.default_rng(seed)
+    n = n_groups * n_rows
+    groups = np.repeat([f"t{k}" for k in range(n_groups)], n_rows)
+    bins = np.arange(n) % 10
+    x = np.linspace(-2.0, 2.0, 10)[bins]
+    nuis = rng.normal(size=n)
+    slope = 10.0 * (x + 0.3 * rng.normal(size=n))
+    curve = 10.0 * (x + 0.8 * x ** 2 + 0.3 * rng.normal(size=n))
+    dh = -(x ** 2 + 0.2 * x + 0.3 * rng.normal(size=n))
+    noise = 0.5 * rng.normal(size=n)
+    return groups, bins, nuis, slope, curve, dh, noise
+
+
+def _regression(groups, bins, y, cols) -> Regression:
+    n = y.size
+    d = Design(y, cols, groups, np.zeros(n, int), np.full(n, "intrusion_z"), bins,
+               {"intrusion_z": 1.0}, 1.0)
+    return Regression(d, {k: (-10.0, 10.0) for k in cols}, ["calibration.zeta"], stance_design=d)
+
+
+@pytest.mark.parametrize("seed", (0, 1))
+def test_the_twin_test_runs_at_the_strength_the_data_ask_for(seed):
+    """Linearised at the file's φ_s, the candidate still helps beside the φ_s column (the
+    curvature of the strength's response is the candidate's shape); replayed at the φ_s
+    the data ask for (a StrengthModel), it does not: a twin, with the refined φ_s."""
+    groups, bins, nuis, slope, curve, dh, noise = _shapes(seed)
+    d_phi = math.radians(-5.0)
+    y = 0.8 * nuis + d_phi * curve + noise
+    linear = _regression(groups, bins, y, {"calibration.zeta": nuis, DH: dh, PHI: slope})
+    assert strength_twin(linear, ["calibration.zeta"], "depth_hardening", [DH], 0.3,
+                         {PHI: PHI_FILE_RAD}) is None          # the linear test misses it
+    # at 33°: the residual of the model replayed there, the derivative there, the
+    # candidate replayed there
+    at = _regression(groups, bins, 0.8 * nuis + noise,
+                     {"calibration.zeta": nuis, DH: dh, PHI: slope})
+    model = StrengthModel(PHI, (PHI_FILE_RAD, PHI_FILE_RAD + d_phi), at)
+    assert model.value == PHI_FILE_RAD + d_phi
+    tw = strength_twin(linear, ["calibration.zeta"], "depth_hardening", [DH], 0.3,
+                       {PHI: PHI_FILE_RAD}, model)
+    assert tw is not None and tw.given_strength_heldout_error_reduction < 0.02
+    assert tw.strength_values["phi_s_deg"] == pytest.approx(33.0, abs=0.3)
+    assert tw.file_values["phi_s_deg"] == pytest.approx(38.0)
+    assert tw.strength_heldout_error_reduction > 0.5
+    # a real effect is still there at the refined strength: no twin
+    real = _regression(groups, bins, 0.8 * nuis + 0.5 * dh + noise,
+                       {"calibration.zeta": nuis, DH: dh, PHI: slope})
+    assert strength_twin(linear, ["calibration.zeta"], "depth_hardening", [DH], 0.3,
+                         {PHI: PHI_FILE_RAD},
+                         StrengthModel(PHI, (PHI_FILE_RAD, PHI_FILE_RAD + d_phi), real)) is None
+    # a candidate whose replays diverged at the refined strength is not in its
+    # regression: it cannot be a twin
+    without = _regression(groups, bins, 0.8 * nuis + noise, {"calibration.zeta": nuis, PHI: slope})
+    assert strength_twin(linear, ["calibration.zeta"], "depth_hardening", [DH], 0.3,
+                         {PHI: PHI_FILE_RAD},
+                         StrengthModel(PHI, (PHI_FILE_RAD, PHI_FILE_RAD + d_phi), without)) is None

@@ -21,7 +21,7 @@ from .regression import (Regression, RegressionBuilder, Regressions, fit_bounded
                          forward_selection)
 from .residuals import Residuals
 from .result import ChannelChange, IndistinguishablePair
-from .strength import StrengthTwin, strength_twin
+from .strength import StrengthModel, StrengthTwin, strength_twin
 from .thresholds import (FEATURE_EXPERIMENTS, LARGE_HELDOUT_REDUCTION, MAX_DELTA_AICC,
                          MIN_EFFECT_SIZE, MIN_HELDOUT_REDUCTION, MIN_INCLUSION,
                          MIN_STANCE_REDUCTION)
@@ -53,11 +53,15 @@ def practically_large(heldout_error_reduction: float, effect_size: float,
 def candidate_stats(reg: Regression, base_keys: Sequence[str],
                     cand_keys: Mapping[str, list[str]],
                     cand_cols: Mapping[str, Sequence[Column]], infos: Mapping, *, n_boot: int,
-                    seed: int, max_effects: int) -> list[CandidateStats]:
+                    seed: int, max_effects: int,
+                    strength_model: StrengthModel | None = None) -> list[CandidateStats]:
     """Statistics of every candidate in ``cand_keys`` against the model ``base_keys``:
     held-out error reduction (systematic rows; stance rows under the same fit), ΔAICc,
     bootstrap inclusion probability, fitted parameters with intervals, significance.
-    Sorted by held-out error reduction (``rank`` 1 first)."""
+    Sorted by held-out error reduction (``rank`` 1 first). ``strength_model``: the model
+    replayed at the terrain strength the data ask for (:func:`.strength.strength_model`),
+    against which a candidate that passes is tested again (None: the strength columns of
+    ``reg``, if any)."""
     base_keys = list(base_keys)
     cv0 = reg.cv(base_keys)
     a0 = reg.aicc(base_keys)
@@ -92,7 +96,7 @@ def candidate_stats(reg: Regression, base_keys: Sequence[str],
     for r in rows:
         if passes_but_inclusion(r) and strength_twin(
                 reg, base_keys, r["effect"], cand_keys[r["effect"]],
-                r["heldout_error_reduction"], {}) is not None:
+                r["heldout_error_reduction"], {}, strength_model) is not None:
             r["strength_twin"] = True
     # bootstrap inclusion probability: forward selection by AICc on resamples of trials
     rng = np.random.default_rng(seed)
@@ -314,6 +318,9 @@ class ScreeningDesign:
         base_keys: the nuisance column keys.
         strength: the terrain-strength columns in the regressions (not in ``base_keys``:
             only tested against, :mod:`.strength`).
+        strength_model: the model replayed at the strength the data ask for, the
+            candidates replayed there (:func:`.strength.strength_model`; None: the data
+            ask for the file's strength, or it was not computed).
     """
 
     builder: RegressionBuilder
@@ -321,6 +328,7 @@ class ScreeningDesign:
     bounds: Mapping[str, tuple[float, float]]
     base_keys: tuple[str, ...]
     strength: tuple[Column, ...] = ()
+    strength_model: StrengthModel | None = None
 
     @property
     def regression(self) -> Regression:
@@ -344,11 +352,12 @@ class Screening(ScreeningDesign):
 
 
 def screening_design(problem: Problem, candidates: CandidateSet, nuisance: Sequence[Column],
-                     res: Residuals, *, seed: int,
-                     strength: Sequence[Column] = ()) -> ScreeningDesign:
+                     res: Residuals, *, seed: int, strength: Sequence[Column] = (),
+                     strength_model: StrengthModel | None = None) -> ScreeningDesign:
     """The regressions on the calibrated residual with every column (bounds = the
     parameters' physical ranges around their neutral values); ``strength``: the
-    terrain-strength columns (their sensitivities in ``res.sens``), tested against only."""
+    terrain-strength columns (their sensitivities in ``res.sens``), tested against only;
+    ``strength_model``: the model at the strength the data ask for (tested against)."""
     strength = tuple(c for c in strength if c.key in res.sens)
     bounds = {c.key: c.bounds for c in tuple(nuisance) + strength}
     for cols in candidates.columns.values():
@@ -358,7 +367,7 @@ def screening_design(problem: Problem, candidates: CandidateSet, nuisance: Seque
     group_unit = "trial" if problem.n_trials >= 3 else "stance"
     builder = RegressionBuilder(problem.windows, problem.channels, res.sigma, group_unit, seed)
     regs = builder.build(res.R, res.sens, res.geometry, bounds, base_keys)
-    return ScreeningDesign(builder, regs, bounds, tuple(base_keys), strength)
+    return ScreeningDesign(builder, regs, bounds, tuple(base_keys), strength, strength_model)
 
 
 def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, *,
@@ -369,7 +378,8 @@ def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, 
     reg = design.regression
     cand_keys = candidates.keys
     ranking = candidate_stats(reg, base_keys, cand_keys, candidates.columns, candidates.infos,
-                              n_boot=n_boot, seed=seed, max_effects=max_effects)
+                              n_boot=n_boot, seed=seed, max_effects=max_effects,
+                              strength_model=design.strength_model)
     pairs = indistinguishable(reg, base_keys, cand_keys, ranking, problem.windows,
                               candidates.infos,
                               Regression(design.regressions.stance, design.bounds, base_keys,
@@ -382,7 +392,7 @@ def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, 
                      heldout_error_reduction_stance=r.heldout_error_reduction_stance)
         if neutral and passes_but_inclusion(stats):
             tw = strength_twin(reg, base_keys, r.effect, cand_keys[r.effect],
-                               r.heldout_error_reduction, neutral)
+                               r.heldout_error_reduction, neutral, design.strength_model)
             if tw is not None:
                 twins.append(tw)
     # a twin must not come back as a leader's indistinguishable partner (refine refines
@@ -390,7 +400,8 @@ def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, 
     gone = {t.effect for t in twins}
     pairs = [p for p in pairs if not gone & set(p.effects)]
     return Screening(design.builder, design.regressions, design.bounds, design.base_keys,
-                     design.strength, tuple(ranking), tuple(pairs), tuple(twins))
+                     design.strength, design.strength_model, ranking=tuple(ranking),
+                     indistinguishable=tuple(pairs), strength_twins=tuple(twins))
 
 __all__ = ["Screening", "ScreeningDesign", "screening_design", "screen", "candidate_stats",
            "practically_large", "indistinguishable", "separating_experiment", "channel_heldout",

@@ -17,22 +17,35 @@ not is a *strength twin*: it is not significant, and the verdict says that a φ_
 explains what it explained, with the φ_s the linear fit asks for. A real effect keeps its
 evidence (``depth_hardening`` n = 1.5: held-out −79 % alone, −59 % given φ_s) and is fitted
 exactly as before: the φ_s column is never part of its fit.
+
+The derivative at the file's φ_s is a poor column for a plant 5° weaker (the response is
+far from linear there), so the test runs against the model replayed at the φ_s the data
+ask for (:func:`strength_model`: Gauss–Newton steps on ζ and φ_s by replays, then every
+candidate replayed there; ``docs/validation.md`` §3.7).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Mapping, Sequence
 
 from ..replay.pool import ReplayPool
 from .acceptance_records import StrengthTwin
-from .calibration import STRENGTH, CalibrationStage
-from .cubes import group_keys, pred_cube
+from .calibration import STRENGTH, CalibrationStage, nuisance_columns
+from .candidates import CandidateSet, diverged_candidates
+from .cubes import group_keys, pred_cube, residual_cube
 from .problem import Problem
-from .regression import Regression
-from .residuals import Residuals, guard_jumps
+from .regression import Regression, RegressionBuilder
+from .residuals import Residuals, compute_residuals, guard_jumps
 from .thresholds import MAX_DELTA_AICC, MIN_HELDOUT_REDUCTION
+
+
+#: at most this many Gauss–Newton steps of the strength by replays (:func:`strength_model`)
+STRENGTH_ITERATIONS = 4
+#: … stopped when a step moves the strength by less than this share of the column's
+#: finite-difference step (φ_s: 0.25° of 3°)
+STRENGTH_TOLERANCE = 1.0 / 12.0
 
 
 def add_strength_sensitivity(problem: Problem, cal: CalibrationStage, res: Residuals,
@@ -54,6 +67,116 @@ def add_strength_sensitivity(problem: Problem, cal: CalibrationStage, res: Resid
     return replace(res, sens=sens)
 
 
+@dataclass(frozen=True, eq=False)
+class StrengthModel:
+    """The calibrated model replayed at the terrain strength the data ask for.
+
+    Attributes:
+        key: the strength column (``strength.<param>``).
+        path: the strength values of the Gauss–Newton steps, the terrain file's first
+            [the parameter's unit; φ_s: rad].
+        regression: every candidate column (recomputed by replays at ``path[-1]``) and
+            the strength column (the derivative at ``path[-1]``) on the residual of the
+            model replayed there; the nuisance columns as in the screening.
+    """
+
+    key: str
+    path: tuple[float, ...]
+    regression: Regression
+
+    @property
+    def value(self) -> float:
+        """The strength the data ask for (the last step)."""
+        return self.path[-1]
+
+
+def _builder(problem: Problem, res: Residuals, seed: int) -> RegressionBuilder:
+    return RegressionBuilder(problem.windows, problem.channels, res.sigma,
+                             "trial" if problem.n_trials >= 3 else "stance", seed)
+
+
+def strength_model(problem: Problem, candidates: CandidateSet, cal: CalibrationStage,
+                   res: Residuals, pool: ReplayPool, *, seed: int = 0,
+                   iterations: int = STRENGTH_ITERATIONS) -> StrengthModel | None:
+    """Refine the terrain strength by replays, then replay every candidate there.
+
+    A plant whose φ_s is 5° below the terrain file's is far outside the range where the
+    replay responds linearly to φ_s (the bearing capacity grows about exponentially with
+    it): the derivative one step above the file's value, fitted beside the nuisance
+    columns, asks for 34.3° where the plant has 33°, and a depth-dependent candidate then
+    still removes 14 % of the held-out error beside it (issue 11, the φ_s = 33° null at
+    seed 101); replayed at 33°, the same candidate removes nothing. So the strength is
+    refined like an added effect, together with the calibrated ζ that trades off against
+    it: Gauss–Newton steps, each fitting the derivatives at the current (ζ, strength)
+    beside the touchdown-depth column on the residual replayed there (three replays of
+    the calibrated model per step), until a step of the strength is below
+    :data:`STRENGTH_TOLERANCE` of the column's step or after ``iterations`` steps. The
+    candidates are then replayed at that strength (:func:`.residuals.compute_residuals`),
+    so that :func:`strength_twin` compares each with the model the data ask for.
+
+    Returns None when ``cal`` has no strength column or the data ask for the file's value
+    (the first step is below the tolerance): the screening's own regression then serves.
+    """
+    if not cal.strength:
+        return None
+    col = cal.strength[0]
+    windows, channels, edges = problem.windows, problem.channels, problem.edges
+    gkeys = group_keys(windows)
+    base_keys = list(cal.nuisance_keys)
+    builder = _builder(problem, res, seed)
+    # the model's own parameters that move with the strength: ζ (and any calibrated
+    # one), re-linearised at every step; the touchdown depth stays a linear column
+    moving = {c.param for c in cal.nuisance if c.param in cal.calibration.values}
+    moving.add(col.param)
+    theta = dict(cal.theta)
+    theta[col.param] = col.neutral
+    R, sens = res.R, {k: res.sens[k] for k in base_keys + [col.key]}
+    path = [col.neutral]
+
+    def columns(th):
+        fixed = {k: v for k, v in th.items() if k != col.param}
+        return nuisance_columns(fixed) + (replace(col, neutral=th[col.param]),)
+
+    for _ in range(iterations):
+        cols = columns(theta)
+        bounds = {c.key: c.bounds for c in cols}
+        beta, _ = builder.build(R, sens, res.geometry, bounds,
+                                base_keys).regression.fit(base_keys + [col.key])
+        step = dict(zip(base_keys + [col.key], (float(b) for b in beta)))
+        if abs(step[col.key]) <= STRENGTH_TOLERANCE * col.step:
+            break
+        for c in [c for c in cols if c.param in moving]:
+            theta[c.param] = min(max(c.neutral + step[c.key], c.lower), c.upper)
+        path.append(theta[col.param])
+        at = res.base.with_theta(**theta)
+        cols = columns(theta)
+        variants = {"at": at}
+        variants.update({c.key: at.with_theta(**{c.param: c.neutral + c.step}) for c in cols
+                         if c.param in moving})
+        preds = pool.run(variants)
+        P = pred_cube(windows, preds["at"], channels, edges)
+        R = residual_cube(windows, preds["at"], channels, edges)
+        for c in cols:
+            if c.key in preds:
+                sens[c.key], _ = guard_jumps((pred_cube(windows, preds[c.key], channels, edges)
+                                              - P) / c.step, gkeys)
+    if len(path) == 1:
+        return None
+    fixed = {k: v for k, v in theta.items() if k != col.param}
+    at = replace(cal, theta=theta, nuisance=nuisance_columns(fixed),
+                 strength=(replace(col, neutral=theta[col.param]),))
+    res_at = add_strength_sensitivity(problem, at, compute_residuals(problem, candidates, at,
+                                                                     pool), pool)
+    bounds = {c.key: c.bounds for c in at.nuisance + at.strength}
+    # a candidate whose replays diverge there is left out (the regression keeps only the
+    # rows where every column is finite); strength_twin then answers None for it
+    keep = candidates.without(list(diverged_candidates(candidates, res_at.sens, res_at.R)))
+    bounds.update({c.key: c.bounds for cols in keep.columns.values() for c in cols})
+    sens = {k: v for k, v in res_at.sens.items() if k in bounds}
+    reg = builder.build(res_at.R, sens, res_at.geometry, bounds, base_keys).regression
+    return StrengthModel(col.key, tuple(path), reg)
+
+
 def strength_keys(reg: Regression) -> list[str]:
     """The terrain-strength column keys the regression has (``strength.<param>``)."""
     return sorted(k for k in reg.cols if k.startswith(f"{STRENGTH}."))
@@ -66,33 +189,44 @@ def _readable(key: str, value: float) -> tuple[str, float]:
 
 def strength_twin(reg: Regression, base_keys: Sequence[str], effect: str,
                   keys: Sequence[str], heldout_error_reduction: float,
-                  neutral: Mapping[str, float]) -> StrengthTwin | None:
+                  neutral: Mapping[str, float],
+                  model: StrengthModel | None = None) -> StrengthTwin | None:
     """Whether ``effect`` (columns ``keys``) is a terrain-strength mismatch in disguise:
     it fails the held-out or the AICc test of §3.3 once the strength columns join the
-    model ``base_keys``. None when it passes, or when the regression has no strength
-    column.
+    model ``base_keys``. None when it passes, or when there is no strength column.
 
     Args:
+        reg: the screening's regression (the model at the terrain file's strength).
         neutral: strength column key → its value in the terrain file (the column's
             neutral; {}: the values are not reported, only the decision).
+        model: the model replayed at the strength the data ask for
+            (:func:`strength_model`): the test then runs on its regression (the
+            candidate replayed there, beside the strength's derivative there), and the
+            strength reported is the refined one. None: the linear test on ``reg``.
     """
-    sk = [k for k in strength_keys(reg) if k not in base_keys]
+    test = model.regression if model is not None else reg
+    if any(k not in test.cols for k in keys):
+        return None                       # its replays diverged at the refined strength
+    sk = [k for k in strength_keys(test) if k not in base_keys]
     if not sk:
         return None
     base = list(base_keys)
     cv0 = reg.cv(base).sse
-    cv_s = reg.cv(base + sk).sse
-    cv_sc = reg.cv(base + sk + list(keys)).sse
+    cv_s = test.cv(base + sk).sse
+    cv_sc = test.cv(base + sk + list(keys)).sse
     red_given = 1.0 - cv_sc / cv_s if cv_s > 0 else 0.0
-    daicc = reg.aicc(base + sk + list(keys)) - reg.aicc(base + sk)
+    daicc = test.aicc(base + sk + list(keys)) - test.aicc(base + sk)
     if red_given >= MIN_HELDOUT_REDUCTION and daicc <= MAX_DELTA_AICC:
         return None
-    beta, _ = reg.fit(base + sk)
-    fitted = dict(_readable(k, neutral[k] + float(b))
-                  for k, b in zip(sk, beta[len(base):]) if k in neutral)
+    beta, _ = test.fit(base + sk)
+    start = {k: (model.value if model is not None and k == model.key else neutral[k])
+             for k in sk if k in neutral}
+    fitted = dict(_readable(k, start[k] + float(b))
+                  for k, b in zip(sk, beta[len(base):]) if k in start)
     filed = dict(_readable(k, neutral[k]) for k in sk if k in neutral)
     return StrengthTwin(effect, float(heldout_error_reduction), float(red_given), float(daicc),
                         float(1.0 - cv_s / cv0) if cv0 > 0 else 0.0, fitted, filed)
 
 
-__all__ = ["StrengthTwin", "add_strength_sensitivity", "strength_keys", "strength_twin"]
+__all__ = ["StrengthTwin", "StrengthModel", "add_strength_sensitivity", "strength_model",
+           "strength_keys", "strength_twin", "STRENGTH_ITERATIONS", "STRENGTH_TOLERANCE"]

@@ -64,6 +64,17 @@ class VerdictInputs:
             return ()
         return remaining_cells(self.before, self.after)
 
+    @property
+    def left_after(self) -> tuple:
+        """Every major cell of the final model after the additions, strongest first: the
+        calibrated model's that remain (:attr:`remaining`) and any the additions did not
+        explain although they were hidden before (a cell is major relative to its
+        channel's stance-to-stance scatter, which a large misfit elsewhere in the stance
+        inflates), or that the additions made."""
+        if not self.selected:
+            return ()
+        return tuple(sorted((c for c in self.after.cells if c.major), key=lambda c: -abs(c.t)))
+
 
 def error_change(reduction: float) -> str:
     """A held-out error change in words with one sign: reduction 0.53 → ``−53.0 %``,
@@ -109,17 +120,23 @@ def missing_effect(v: VerdictInputs) -> Verdict | None:
 
 
 def partially_explained(v: VerdictInputs) -> Verdict | None:
-    """Something was added, but the structure that flagged the missing effect (the
-    calibrated model's major cells) is not all gone: say what was added and what remains
-    where."""
+    """Something was added, but structure is left: the calibrated model's major cells
+    that flagged the missing effect are not all gone, or the final model has major cells
+    of its own (structure the additions did not explain). Say what was added and what
+    remains where."""
     left = v.remaining
-    if not v.selected or not left:
+    if not v.selected or not (left or v.left_after):
         return None
-    base = missing_effect(v)
-    text = (base.text.split(". After adding")[0]
-            + f". The structure that flagged it is only partly explained: {len(left)} of the "
-              "calibrated model's major cells remain, e.g. "
-            + "; ".join(cell_words(c) for c in left[:LISTED_REMAINING]))
+    base = missing_effect(v).text.split(". After adding")[0]
+    if left:
+        text = (base + f". The structure that flagged it is only partly explained: "
+                f"{len(left)} of the calibrated model's major cells remain, e.g. "
+                + "; ".join(cell_words(c) for c in left[:LISTED_REMAINING]))
+    else:
+        new = v.left_after
+        text = (base + f". Structure is left that the addition does not explain: {len(new)} "
+                "channel × phase cells of the final model are major, e.g. "
+                + "; ".join(cell_words(c) for c in new[:LISTED_REMAINING]))
     return Verdict("partially_explained", text, v.selected)
 
 
@@ -173,6 +190,9 @@ def best_candidate_statement(v: VerdictInputs) -> str:
         if v.remaining:
             why.append(f"{len(v.remaining)} of the major cells that flagged the structure "
                        "remain")
+        elif v.left_after:
+            why.append(f"{len(v.left_after)} major cells are left after the addition, e.g. "
+                       + cell_words(v.left_after[0]))
         if twins:
             why.append(f"the data cannot tell it from {', '.join(twins)}")
         if v.twins_of(name):
