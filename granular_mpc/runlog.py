@@ -22,6 +22,7 @@ format v1 (``docs/data-format.md``), so a run log is itself a valid data set for
 
 from __future__ import annotations
 
+import math
 import warnings
 from pathlib import Path
 from typing import Any, Mapping
@@ -32,6 +33,7 @@ import pinocchio as pin
 from .columns import (AXES, BASE_COLUMNS, COM_POSITION, COM_VELOCITY, GRF_COLUMNS,
                       INTRUSION_COLUMNS, LOG_DIR, STANCE, TIME, foot_column, joint_columns,
                       log_part_name)
+from .dynamics.plant import readout_offsets
 from .exceptions import OutputError
 from .robot.model import SIDES, Biped
 from .rotations import matrix_from_quat_xyzw
@@ -180,19 +182,48 @@ class PlantRecorder:
                          + (STANCE,) + tuple(c for c, _ in self._none_cols)
                          + tuple(self._com_cols))
         self._none_values = tuple(v for _, v in self._none_cols)
-        # one gather from [q, v, τ, R·v_lin, c, ċ] (sizes nq, nv, nv, 3, 3, 3) gives, in row
-        # order, the joint block (per joint q, dq, τ), the base (position, quaternion
-        # (w, x, y, z) from q's (x, y, z, w), linear velocity in W, angular velocity in B)
-        # and the CoM block: the values the row had element by element
-        nq, nv = biped.model.nq, biped.model.nv
-        o_v, o_tau, o_rv = nq, nq + nv, nq + 2 * nv
-        o_com = o_rv + 3
-        take = [k for i in range(nj) for k in (int(biped.idx_q[i]), o_v + int(biped.idx_v[i]),
-                                               o_tau + int(biped.idx_v[i]))]
-        take += [0, 1, 2, 6, 3, 4, 5, o_rv, o_rv + 1, o_rv + 2, o_v + 3, o_v + 4, o_v + 5]
-        self._n_head = len(take)
-        take += list(range(o_com, o_com + 6))
-        self._take = np.array(take, dtype=np.intp)
+        # one gather from [readout (the plant data's read-out vector) | R·v_lin | c | ċ |
+        # t, 0] gives every number of the row in row order: time, the joint block (per
+        # joint q, dq, τ), the base (position, quaternion (w, x, y, z) from q's
+        # (x, y, z, w), linear velocity in W, angular velocity in B), per foot its 13 values
+        # (per axis grf, intrusion, contact point; contact, depth, pitch, cap_z), the
+        # stance foot's grf and intrusion per axis, the CoM block. Intrusion and depth of a
+        # foot off the ground, and the copies for stance "none", read the 0 — hence one
+        # index array per (left in contact, right in contact, stance).
+        nq, nv, na = biped.model.nq, biped.model.nv, len(biped.joint_names)
+        off = readout_offsets(nq, nv, na)
+        self._nq, self._nv = nq, nv
+        o_v, o_tau, o_rv = off["v"], off["tau_a"], off["size"]
+        o_com, o_t = o_rv + 3, o_rv + 9
+        o_zero = o_t + 1
+        head = [o_t]
+        head += [k for i in range(nj) for k in (int(biped.idx_q[i]), o_v + int(biped.idx_v[i]),
+                                                o_tau + i)]
+        head += [0, 1, 2, 6, 3, 4, 5, o_rv, o_rv + 1, o_rv + 2, o_v + 3, o_v + 4, o_v + 5]
+        #: where the row's contact columns (ints) and the stance column go
+        self._contact_at = (len(head) + 9, len(head) + 22)
+        self._stance_at = len(head) + 26
+        # contact flags and vertical forces, read first (the default stance)
+        self._probe = np.array([off["contact"], off["contact"] + 1, off[0, "force"] + 2,
+                                off[1, "force"] + 2], dtype=np.intp)
+
+        def foot_block(foot: int, contact: bool) -> list[int]:
+            f, pt, dg = off[foot, "force"], off[foot, "point"], off[foot, "diag"]
+            z = o_zero
+            return ([f, dg + 2, pt, f + 1, dg + 3, pt + 1, f + 2, dg + 4, pt + 2,
+                     off["contact"] + foot, dg, dg + 5, dg + 1] if contact else
+                    [f, z, pt, f + 1, z, pt + 1, f + 2, z, pt + 2, off["contact"] + foot, z,
+                     dg + 5, dg + 1])
+
+        self._takes = {}
+        for c0 in (False, True):
+            for c1 in (False, True):
+                blocks = (foot_block(0, c0), foot_block(1, c1))
+                for stance in (*SIDES, "none"):
+                    b = blocks[SIDES.index(stance)] if stance != "none" else [o_zero] * 8
+                    copies = [b[0], b[1], b[3], b[4], b[6], b[7]]
+                    take = head + blocks[0] + blocks[1] + copies + list(range(o_com, o_com + 6))
+                    self._takes[c0, c1, stance] = np.array(take, dtype=np.intp)
 
     def row(self, d, *, stance: str | None = None, extra: Mapping[str, Any] | None = None) -> dict:
         """Row for plant data ``d``; ``stance`` defaults to the foot in contact (the one
@@ -201,45 +232,54 @@ class PlantRecorder:
         Columns in this order: time, per joint ``q, dq, tau``, the base, per foot (per axis
         grf, intrusion, contact point; contact, depth, pitch, cap_z), stance, the stance
         foot's grf and intrusion, the CoM, then ``extra``. Values are Python floats (ints
-        for ``contact``), filled from whole arrays at once (one ``tolist`` per block)."""
+        for ``contact``; intrusion and depth 0 off the ground), gathered from the plant
+        data's read-out vector (``d.readout()``,
+        :func:`~granular_mpc.dynamics.plant.readout_offsets`), the time and the CoM in one
+        gather and one ``tolist``.
+
+        Args:
+            d: plant data offering ``t`` [s] and ``readout()``
+                (:class:`~granular_mpc.dynamics.plant.PlantData`,
+                :class:`~granular_mpc.dynamics.fast_plant.FastPlantData`).
+            stance: ``left``, ``right`` or ``none``; default as above.
+            extra: further columns, appended in their order.
+
+        Raises:
+            ValueError: ``stance`` is not one of the three.
+        """
         b = self.biped
-        q, v = d.q, d.v
+        r = d.readout()
+        nq = self._nq
+        q, v = r[:nq], r[nq:nq + self._nv]
         pdata = self._pdata
         # the CoM pass runs the forward kinematics: the free flyer's placement is the
         # trunk's rotation, the same numbers as matrix_from_quat_xyzw(q[3:7]) bit for bit
-        pin.centerOfMass(b.model, pdata, q, v)
+        com = pin.centerOfMass(b.model, pdata, q, v)       # pdata.com[0]
         R = (np.ascontiguousarray(pdata.oMi[1].rotation) if self._free_flyer
              else matrix_from_quat_xyzw(q[3:7]))
-        # joints, base and CoM values in row order from one gather (see __init__)
-        flat = np.concatenate((q, v, d.tau, R @ v[0:3], pdata.com[0], pdata.vcom[0]))
-        gathered = flat[self._take].tolist()
-        n_head = self._n_head
-        # the values in column order (time, joints, base, both feet, stance, the stance
-        # foot's copies, CoM), collected in one list and zipped once
-        vals: list = [d.t]
-        vals += gathered[:n_head]
-        fz = []
-        copies = []     # per foot: its (grf, intrusion) per axis, the stance columns' values
-        for i in range(2):
-            f = d.foot_force(i).tolist()
-            diag = d.foot_diag(i).tolist()
-            pt = d.foot_point(i).tolist()
-            if d.foot_in_contact(i):
-                vals += (f[0], diag[2], pt[0], f[1], diag[3], pt[1], f[2], diag[4], pt[2],
-                         1, diag[0], diag[5], diag[1])
-                copies.append((f[0], diag[2], f[1], diag[3], f[2], diag[4]))
-                fz.append(f[2])
-            else:
-                vals += (f[0], 0.0, pt[0], f[1], 0.0, pt[1], f[2], 0.0, pt[2],
-                         0, 0.0, diag[5], diag[1])
-                copies.append((f[0], 0.0, f[1], 0.0, f[2], 0.0))
-                fz.append(-np.inf)
+        c0, c1, fz0, fz1 = r[self._probe].tolist()
+        c0, c1 = c0 > 0.5, c1 > 0.5
         if stance is None:
-            stance = "none" if max(fz) == -np.inf else SIDES[int(np.argmax(fz))]
-        vals.append(stance)
-        vals += copies[SIDES.index(stance)] if stance != "none" else self._none_values
-        vals += gathered[n_head:]
-        row: dict[str, Any] = dict(zip(self._columns, vals))
+            # the heavier foot in contact (np.argmax's choice: the first NaN, else the
+            # first maximum), none if neither is in contact
+            fz0 = fz0 if c0 else -math.inf
+            fz1 = fz1 if c1 else -math.inf
+            if max(fz0, fz1) == -math.inf:
+                stance = "none"
+            elif fz0 != fz0 or (fz1 == fz1 and fz0 >= fz1):
+                stance = SIDES[0]
+            else:
+                stance = SIDES[1]
+        take = self._takes.get((c0, c1, stance))
+        if take is None:
+            raise ValueError(f"stance must be one of {(*SIDES, 'none')}, not {stance!r}")
+        # every number of the row in row order from one gather (see __init__)
+        row_vals = np.concatenate((r, R @ v[0:3], com, pdata.vcom[0],
+                                   (d.t, 0.0)))[take].tolist()
+        i0, i1 = self._contact_at
+        row_vals[i0], row_vals[i1] = int(c0), int(c1)
+        row_vals.insert(self._stance_at, stance)
+        row: dict[str, Any] = dict(zip(self._columns, row_vals))
         if extra:
             row.update(extra)
         return row

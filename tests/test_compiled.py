@@ -11,7 +11,8 @@ import pytest
 from granular_mpc.config import EffectSpec, SimConfig, load_terrain
 from granular_mpc.dynamics import Plant
 from granular_mpc.dynamics import rigid_body_sx as rb
-from granular_mpc.dynamics.compiled import CompiledPlant
+from granular_mpc.dynamics.compiled import STEP_COUNTS, CompiledPlant
+from granular_mpc.dynamics.step_sx import AUX_SLICES
 from granular_mpc.exceptions import ConfigError, PlantDivergedError
 from granular_mpc.terrain import build_terrain
 
@@ -243,6 +244,61 @@ def test_divergence_raises(rigid_pair):
     with pytest.raises(PlantDivergedError) as err:
         fast.step(fast.initial_state(q, v), n_steps=3)
     assert err.value.reason == "velocity-bound"
+
+
+def _advance_one_by_one(fast, d, n, points):
+    """``n`` calls of ``advance(d, 1)``, each foot's evaluated contact point kept per step
+    (what ``advance_steps`` documents), read through the public aux slices."""
+    for _ in range(n):
+        fast.advance(d, 1)
+        for foot in (0, 1):
+            if d.aux[AUX_SLICES[foot, "evaluated"].start] > 0.5:
+                points[foot] = d.aux[AUX_SLICES[foot, "point"]]
+
+
+def test_advance_steps_equals_single_steps(sand_pair):
+    """advance_steps in multi-step calls (8, 4, 2 and single steps) gives bit for bit the
+    states, aux, time, step count and kept contact points of one advance per step, with
+    a torque changing between calls, in contact in the sand."""
+    plant, fast = sand_pair
+    biped = plant.biped
+    rng = np.random.default_rng(5)
+    d_ref, q_hold = _contact_state(plant, rng)
+    d1 = fast.data_from_state(fast.state_from_data(d_ref))
+    dn = fast.data_from_state(fast.state_from_data(d_ref))
+    p1, pn = np.full((2, 3), np.nan), np.full((2, 3), np.nan)
+    fast.advance(d1, 1)
+    fast.advance(dn, 1)
+    ns = (13, 8, 4, 3, 2, 1, 7, 15, 6, 5)
+    assert {k for k in STEP_COUNTS if k <= max(ns)} == set(STEP_COUNTS)   # every call size
+    for n in ns:
+        tau = KP * (q_hold - d1.q[biped.idx_q]) - KD * d1.v[biped.idx_v]
+        d1.tau[:] = dn.tau[:] = tau
+        _advance_one_by_one(fast, d1, n, p1)
+        fast.advance_steps(dn, n, pn)
+        assert np.array_equal(dn.x, d1.x) and np.array_equal(dn.aux, d1.aux)
+        assert dn.t == d1.t and dn.steps == d1.steps
+        assert np.array_equal(pn, p1, equal_nan=True)
+    assert not np.isnan(p1).any()          # both feet's points were read
+
+
+def test_advance_steps_raises_at_the_step_where_it_diverges(rigid_pair):
+    """A free fall that crosses the velocity bound in the middle of a multi-step call
+    raises PlantDivergedError at the same step (time, state, aux) as single steps."""
+    plant, fast = rigid_pair
+    q = plant.biped.standing_configuration(1.0)
+    v = np.zeros(plant.biped.model.nv)
+    v[2] = -(plant.sim.max_speed - 2.5 * 9.81 * plant.dt)       # crosses at step 3
+    d1, dn = fast.new_data(q, v), fast.new_data(q, v)
+    p1, pn = np.zeros((2, 3)), np.zeros((2, 3))
+    with pytest.raises(PlantDivergedError) as e1:
+        _advance_one_by_one(fast, d1, 8, p1)
+    with pytest.raises(PlantDivergedError) as en:
+        fast.advance_steps(dn, 8, pn)
+    assert en.value.reason == e1.value.reason == "velocity-bound"
+    assert dn.steps == d1.steps == 3 and dn.t == d1.t
+    assert np.array_equal(dn.x, d1.x) and np.array_equal(dn.aux, d1.aux)
+    assert np.array_equal(pn, p1)
 
 
 def test_untraceable_joint_effect_rejected(biped, rigid):

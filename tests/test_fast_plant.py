@@ -10,6 +10,7 @@ import pytest
 
 from granular_mpc.config import DropConfig, GuideRigConfig, SimConfig
 from granular_mpc.dynamics import Plant
+from granular_mpc.dynamics.plant import READOUT_FOOT_PARTS, readout_offsets
 from granular_mpc.dynamics.fast_plant import FastPlant
 
 DROP, RIG = DropConfig(), GuideRigConfig()
@@ -91,3 +92,30 @@ def test_step_n_equals_single_steps(biped, sand, wrench):
             assert np.array_equal(dn.foot_diag(foot), d1.foot_diag(foot))
             assert dn.foot_in_contact(foot) == d1.foot_in_contact(foot)
     assert touched and dn.steps == 1 + 330
+
+
+def test_readout_is_the_read_outs_on_both_plants(biped, sand):
+    """``readout()`` of the reference and of the compiled plant data is, at the documented
+    offsets, exactly q, v, τ_a, per foot the force, point and diagnostics, and the contact
+    flags — one foot on the ground, the other in the air."""
+    reference = Plant(biped, sand, SimConfig())
+    q0 = biped.standing_configuration(-0.004)
+    q0[biped.idx_q[biped.joint_names.index("right_knee")]] += 0.5
+    nq, nv, na = biped.model.nq, biped.model.nv, len(biped.joint_names)
+    off = readout_offsets(nq, nv, na)
+    for plant in (reference, FastPlant(reference)):
+        d = plant.new_data(q0)
+        for _ in range(6):
+            plant.step(d, np.linspace(0.3, -0.3, na))
+        r = d.readout()
+        assert r.shape == (off["size"],)
+        assert np.array_equal(r[off["q"]:off["q"] + nq], d.q)
+        assert np.array_equal(r[off["v"]:off["v"] + nv], d.v)
+        assert np.array_equal(r[off["tau_a"]:off["tau_a"] + na], d.tau_a)
+        reads = {"force": d.foot_force, "point": d.foot_point, "diag": d.foot_diag}
+        for foot in (0, 1):
+            for part, n in READOUT_FOOT_PARTS:
+                assert np.array_equal(r[off[foot, part]:off[foot, part] + n], reads[part](foot))
+        flags = [d.foot_in_contact(0), d.foot_in_contact(1)]
+        assert flags == [True, False]
+        assert r[off["contact"]:off["contact"] + 2].tolist() == [1.0, 0.0]

@@ -15,12 +15,13 @@ import pandas as pd
 import pinocchio as pin
 import pytest
 
-from granular_mpc.columns import (BASE_ANGULAR_VELOCITY, BASE_LINEAR_VELOCITY, BASE_POSITION,
-                                  BASE_QUATERNION, COM_POSITION, COM_VELOCITY, FOOT_SIDES,
+from granular_mpc.columns import (BASE_ANGULAR_VELOCITY, BASE_COLUMNS, BASE_LINEAR_VELOCITY,
+                                  BASE_POSITION, BASE_QUATERNION, COM_POSITION, COM_VELOCITY,
+                                  FOOT_SIDES,
                                   GRF_COLUMNS, INTRUSION_COLUMNS, LOG_DIR, STANCE, TIME,
                                   foot_column, format_columns, joint_columns, log_part_name)
 from granular_mpc.config import SimConfig
-from granular_mpc.dynamics import Plant
+from granular_mpc.dynamics import FastPlant, Plant
 from granular_mpc.exceptions import OutputError
 from granular_mpc.rotations import matrix_from_quat_wxyz
 from granular_mpc.runlog import LOG_PART_GLOB, PlantRecorder, RunLog, read_log
@@ -38,6 +39,12 @@ FD_EPS = 1e-6
 @pytest.fixture(scope="module")
 def sand_plant(biped, sand):
     return Plant(biped, sand, SimConfig())
+
+
+@pytest.fixture(scope="module", params=["reference", "compiled"])
+def any_sand_plant(request, sand_plant):
+    """The reference plant and the compiled one (FastPlant): the recorder reads both."""
+    return sand_plant if request.param == "reference" else FastPlant(sand_plant)
 
 
 def _joint_q_index(biped, name):
@@ -81,11 +88,23 @@ def _com_reference(biped, q):
 # --------------------------------------------------------------------------------------
 
 
-def test_recorder_row_matches_the_plant_state(biped, sand_plant):
-    d = _moving_state(sand_plant, biped, lift_right=True)
+def test_recorder_row_matches_the_plant_state(biped, any_sand_plant):
+    d = _moving_state(any_sand_plant, biped, lift_right=True)
     row = PlantRecorder(biped).row(d)
     q, v = d.q, d.v
-    assert row[TIME] == d.t and d.t == pytest.approx(5 * sand_plant.dt)
+    assert row[TIME] == d.t and d.t == pytest.approx(5 * any_sand_plant.dt)
+    # the columns in the documented order, Python floats (ints for contact), then extra
+    jcols = [c for cols in zip(*(joint_columns(biped.joint_names, k) for k in ("q", "dq", "tau")))
+             for c in cols]
+    feet = [foot_column(side, c) for side in FOOT_SIDES
+            for c in ([n for ax in "xyz" for n in (f"grf_{ax}", f"intrusion_{ax}", f"p{ax}")]
+                      + ["contact", "depth", "pitch", "cap_z"])]
+    stance_copies = [c for pair in zip(GRF_COLUMNS, INTRUSION_COLUMNS) for c in pair]
+    assert list(row) == ([TIME] + jcols + list(BASE_COLUMNS) + feet + [STANCE] + stance_copies
+                         + list(COM_POSITION) + list(COM_VELOCITY))
+    for c, value in row.items():
+        want = str if c == STANCE else int if c.endswith("_contact") else float
+        assert type(value) is want, c
     # joints, by name through Pinocchio's own joint indices
     for name, cq, cdq, ctau in zip(biped.joint_names, joint_columns(biped.joint_names, "q"),
                                    joint_columns(biped.joint_names, "dq"),
@@ -131,8 +150,8 @@ def test_recorder_row_matches_the_plant_state(biped, sand_plant):
     assert set(format_columns(biped.joint_names)) <= set(row)
 
 
-def test_recorder_stance_is_the_foot_carrying_more_and_can_be_given(biped, sand_plant):
-    d = _moving_state(sand_plant, biped, lift_right=False, steps=20)
+def test_recorder_stance_is_the_foot_carrying_more_and_can_be_given(biped, any_sand_plant):
+    d = _moving_state(any_sand_plant, biped, lift_right=False, steps=20)
     assert d.foot_in_contact(0) and d.foot_in_contact(1)
     rec = PlantRecorder(biped)
     row = rec.row(d)
@@ -147,6 +166,8 @@ def test_recorder_stance_is_the_foot_carrying_more_and_can_be_given(biped, sand_
     assert given["cmd_vx"] == 0.2 and given["mpc_status"] == "solved"
     none = rec.row(d, stance="none")
     assert all(none[c] == 0.0 for c in GRF_COLUMNS + INTRUSION_COLUMNS)
+    with pytest.raises(ValueError, match="stance"):
+        rec.row(d, stance="both")
 
 
 def test_recorder_row_in_the_air_has_stance_none(biped, rigid):

@@ -14,6 +14,9 @@ terrain's effects, joint end stops, joint damping and traceable joint effects �
 as a single CasADi SX expression (:mod:`.step_sx`), generated to C, compiled once per
 model with the system compiler (:mod:`.codegen`, cached by source hash) and called once
 per ``chunk`` steps (``mapaccum``); the state lives in flat NumPy vectors between calls.
+:meth:`CompiledPlant.advance_steps` (the closed loop's path) calls ``plant_steps<k>``
+(:func:`steps_function`): ``k`` steps returning every step's state and aux, so the
+per-step read-outs and checks of single steps are kept without a Python call per step.
 ``tests/test_compiled.py`` checks it against :class:`Plant` to ~1e-9 over random states
 on sand and rigid ground.
 
@@ -56,6 +59,12 @@ from ..codegen import compile_functions
 from .plant import Plant, PlantData
 from .step_sx import AUX_NAMES, AUX_SLICES, StepBuilder, StepLayout, aux_foot
 
+#: step counts with a compiled "every step's result" function (``plant_steps<k>``), the
+#: calls :meth:`CompiledPlant.advance_steps` makes (largest first)
+STEP_COUNTS = (8, 4, 2)
+#: a state whose entries are all below this in magnitude has a finite sum (the per-step
+#: check of :meth:`CompiledPlant.advance_steps` cannot fire; nx × 1e300 < 1.7e308)
+_BOUND = 1e300
 #: steps per compiled call in :meth:`CompiledPlant.step` (``mapaccum``)
 DEFAULT_CHUNK = 10
 
@@ -175,7 +184,9 @@ class CompiledPlant:
         step, start = builder.step_function(), builder.start_function()
         #: the symbolic (uncompiled) functions, for other wrappers
         self.symbolic = {"plant_step": step, "plant_start": start,
-                         "plant_chunk": chunk_function(step, chunk)}
+                         "plant_chunk": chunk_function(step, chunk),
+                         **{f"plant_steps{k}": steps_function(step, k, plant.sim.max_speed)
+                            for k in STEP_COUNTS}}
         # without a C compiler the same functions run in CasADi's virtual machine (slower)
         self.functions = compile_functions("plant", list(self.symbolic.values()), fallback=True)
         self._step1 = _Caller(self.functions["plant_step"])
@@ -300,8 +311,11 @@ class CompiledPlant:
     def advance_steps(self, d: "CompiledData", n_steps: int,
                       points: np.ndarray | None = None) -> None:
         """Advance ``d`` in place by ``n_steps`` single steps: the same as ``n_steps`` calls
-        of ``advance(d, 1)`` (one compiled step per step, the time summed step by step),
-        in one Python call.
+        of ``advance(d, 1)`` (the same compiled step per step, the time summed step by
+        step), in one Python call: the steps run in compiled calls that return every step's
+        state and aux (``plant_steps<k>``, ``k`` from :data:`STEP_COUNTS`, largest first;
+        a remainder of one step as ``plant_step``), the per-step check and contact-point
+        read-out done on those results.
 
         Args:
             d: the data (its held command is used).
@@ -318,25 +332,78 @@ class CompiledPlant:
         if self.verlet and not d.started:
             d.call_start()
         d.started = True
-        call = d._calls[False][1]
-        x, x_out, aux = d.x, d._x_out, d.aux
-        dt, max_speed = self.dt, self.plant.sim.max_speed
+        left = int(n_steps)
+        while left > 0:
+            for k in STEP_COUNTS:
+                if k <= left:
+                    self._steps(d, k, points)
+                    break
+            else:
+                k = 1
+                self._one_step(d, points)
+            left -= k
+
+    def _one_step(self, d: "CompiledData", points: np.ndarray | None) -> None:
+        """One step of :meth:`advance_steps`: the compiled step, the time, the check, the
+        contact points."""
+        d._calls[False][1]()
+        x, aux = d.x, d.aux
+        x[:] = d._x_out
+        d.t += self.dt
+        d.steps += 1
+        # ndarray.sum's reduction called directly (the same sum, without its wrapper)
+        if not (aux[-1] < self.plant.sim.max_speed) or not math.isfinite(_add_reduce(x, None)):
+            self._check(d.t, x, aux)
         if points is not None:
-            ev0, ev1 = AUX_SLICES[0, "evaluated"].start, AUX_SLICES[1, "evaluated"].start
-            p0, p1 = AUX_SLICES[0, "point"], AUX_SLICES[1, "point"]
-        for _ in range(int(n_steps)):
-            call()
-            x[:] = x_out
-            d.t += dt
+            for foot in (0, 1):
+                if aux[_EVALUATED[foot]] > 0.5:
+                    points[foot] = aux[_POINT[foot]]
+
+    def _steps(self, d: "CompiledData", k: int, points: np.ndarray | None) -> None:
+        """``k`` steps of :meth:`advance_steps` in one compiled call that returns every
+        step's state and aux: the same numbers as ``k`` single steps (the same compiled
+        step), the time summed step by step. The per-step check cannot fire when every
+        speed is below the bound and every state entry below ``_BOUND`` in magnitude (NaN
+        fails both tests); otherwise the steps are replayed one by one with the per-step check, so
+        the error is raised at the step (time, state, aux, contact points) where it
+        happened (the tests and the contact points' last steps come with the call,
+        :func:`steps_function`)."""
+        d._calls["steps", k][1]()
+        xs, auxs, info = d._steps_out[k]     # (k, nx), (k, n_aux): row j = step j; (3,)
+        failed, last0, last1 = info.tolist()
+        if failed:
+            self._replay(d, xs, auxs, points)
+            return
+        d.x[:] = xs[k - 1]
+        d.aux[:] = auxs[k - 1]
+        t, dt = d.t, self.dt
+        for _ in range(k):
+            t += dt
+        d.t = t
+        d.steps += k
+        if points is not None:
+            # each foot's point from the last step that evaluated its contact
+            if last0:
+                points[0] = auxs[int(last0) - 1, _POINT[0]]
+            if last1:
+                points[1] = auxs[int(last1) - 1, _POINT[1]]
+
+    def _replay(self, d: "CompiledData", xs: np.ndarray, auxs: np.ndarray,
+                points: np.ndarray | None) -> None:
+        """The steps of one multi-step call taken one by one (state, time, check, points)."""
+        x, aux = d.x, d.aux
+        max_speed = self.plant.sim.max_speed
+        for j in range(len(xs)):
+            x[:] = xs[j]
+            aux[:] = auxs[j]
+            d.t += self.dt
             d.steps += 1
-            # ndarray.sum's reduction called directly (the same sum, without its wrapper)
             if not (aux[-1] < max_speed) or not math.isfinite(_add_reduce(x, None)):
                 self._check(d.t, x, aux)
             if points is not None:
-                if aux[ev0] > 0.5:
-                    points[0] = aux[p0]
-                if aux[ev1] > 0.5:
-                    points[1] = aux[p1]
+                for foot in (0, 1):
+                    if aux[_EVALUATED[foot]] > 0.5:
+                        points[foot] = aux[_POINT[foot]]
 
     def _check(self, t: float, x: np.ndarray, aux: np.ndarray) -> None:
         L, sim = self.layout, self.plant.sim
@@ -347,8 +414,11 @@ class CompiledPlant:
                                      v_names=self.plant.biped.v_names)
 
 
-#: the reduction :meth:`CompiledPlant.advance_steps` calls directly
+#: the reductions :meth:`CompiledPlant.advance_steps` calls directly
 _add_reduce = np.add.reduce
+#: per foot: where its "evaluated" flag and its contact point are in an aux vector
+_EVALUATED = [AUX_SLICES[0, "evaluated"].start, AUX_SLICES[1, "evaluated"].start]
+_POINT = (AUX_SLICES[0, "point"], AUX_SLICES[1, "point"])
 
 
 class CompiledData:
@@ -375,14 +445,23 @@ class CompiledData:
         na = L.na
         self.tau, self.q_ref, self.kp, self.kd = (self.u[k * na:(k + 1) * na] for k in range(4))
         self._x_out = np.zeros(L.nx)
+        #: per step count k of STEP_COUNTS: every step's state and aux, (k, nx), (k, n_aux)
+        #: (row j: after step j; the column-major outputs of ``plant_steps<k>``)
+        self._steps_out = {k: (np.zeros((k, L.nx)), np.zeros((k, len(self.aux))), np.zeros(3))
+                           for k in STEP_COUNTS}
         self._calls = {}
-        for key, name in ((False, "plant_step"), (True, "plant_chunk"), ("start", "plant_start")):
+        for key, name in ((False, "plant_step"), (True, "plant_chunk"), ("start", "plant_start"),
+                          *((("steps", k), f"plant_steps{k}") for k in STEP_COUNTS)):
             buf, call = fast.functions[name].buffer()
             for i, a in enumerate((self.x, self.u, self.theta, self.wrench)):
                 buf.set_arg(i, memoryview(a))
-            buf.set_res(0, memoryview(self._x_out))
-            if name != "plant_start":
-                buf.set_res(1, memoryview(self.aux))
+            if name.startswith("plant_steps"):
+                for i, a in enumerate(self._steps_out[key[1]]):
+                    buf.set_res(i, memoryview(a.reshape(-1)))
+            else:
+                buf.set_res(0, memoryview(self._x_out))
+                if name != "plant_start":
+                    buf.set_res(1, memoryview(self.aux))
             self._calls[key] = (buf, call)
 
     def call(self, chunk: bool) -> None:
@@ -414,6 +493,35 @@ def chunk_function(step: ca.Function, k: int) -> ca.Function:
                        ["x", "u", "theta", "wrench"], ["x_next", "aux"])
 
 
+def steps_function(step: ca.Function, k: int, max_speed: float) -> ca.Function:
+    """``plant_steps<k>(x, u, θ, w) -> (xs, auxs, info)``: ``k`` steps with the command
+    held, every step's result (the same compiled step as ``plant_step``, called ``k`` times
+    by ``mapaccum``).
+
+    Outputs: ``xs`` (nx × k) the state after each step, ``auxs`` (n_aux × k) each step's
+    auxiliary output (column j: step j), and ``info`` (3): the number of failed tests
+    ``|x_ij| < BOUND`` and ``speed_j < max_speed`` (a NaN fails them: 0 means no step's
+    state has a non-finite sum or exceeds the velocity bound; ``BOUND`` = 1e300, nx ×
+    1e300 < 1.7e308), then per foot 1 + the last step that evaluated its contact (0:
+    none) — comparisons and selections of whole numbers only, no arithmetic on the state.
+    """
+    X, U = ca.MX.sym("x", step.size1_in(0)), ca.MX.sym("u", step.size1_in(1))
+    T, W = ca.MX.sym("theta", step.size1_in(2)), ca.MX.sym("wrench", step.size1_in(3))
+    acc = step.mapaccum(f"plant_acc{k}", k)
+    xs, aux = acc(X, ca.repmat(U, 1, k), ca.repmat(T, 1, k), ca.repmat(W, 1, k))
+    failed = (ca.sum1(ca.sum2(1 - (ca.fabs(xs) < _BOUND)))
+              + ca.sum2(1 - (aux[-1, :] < max_speed)))
+    last = []
+    for foot in (0, 1):
+        ev = aux[AUX_SLICES[foot, "evaluated"].start, :]
+        j_last = ca.MX(0)
+        for j in range(k):
+            j_last = ca.if_else(ev[j] > 0.5, j + 1, j_last)
+        last.append(j_last)
+    return ca.Function(f"plant_steps{k}", [X, U, T, W], [xs, aux, ca.vertcat(failed, *last)],
+                       ["x", "u", "theta", "wrench"], ["xs", "auxs", "info"])
+
+
 class _Caller:
     """Calls a compiled function through its buffer interface on pre-allocated arrays."""
 
@@ -433,4 +541,5 @@ class _Caller:
         return [o.copy() for o in self.outs]
 
 
-__all__ = ["CompiledPlant", "CompiledState", "CompiledData", "DEFAULT_CHUNK", "chunk_function"]
+__all__ = ["CompiledPlant", "CompiledState", "CompiledData", "DEFAULT_CHUNK", "STEP_COUNTS",
+           "chunk_function", "steps_function"]

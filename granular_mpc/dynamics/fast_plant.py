@@ -11,7 +11,7 @@
 synthesiser and the replay read from ``Plant`` / ``PlantData`` (``new_data``, ``step``,
 ``simulate``, ``energy``; ``t``, ``steps``, ``q``, ``v``, ``tau``, ``tau_a``,
 ``set_torque``, ``base_wrench``, ``foot_force``, ``foot_point``, ``foot_in_contact``,
-``foot_diag``) with the same physics: one compiled call per step
+``foot_diag``, ``readout``) with the same physics: one compiled call per step
 (:class:`~.compiled.CompiledPlant`). A callable ``base_wrench`` (e.g. a guide rig) is
 evaluated in Python where the reference evaluates it — at the drifted configuration and
 the half-step velocity of the Verlet step (which needs ``M⁻¹Δτ`` from Pinocchio when the
@@ -31,7 +31,7 @@ import numpy as np
 import pinocchio as pin
 
 from .compiled import CompiledPlant
-from .plant import Plant
+from .plant import READOUT_FOOT_PARTS, Plant
 from .step_sx import AUX_SLICES, aux_foot
 
 
@@ -183,6 +183,22 @@ class FastPlantData:
         self._contact_flags = self._states[:, :, 6]     # per foot and patch: in contact
         self._evaluated = (AUX_SLICES[0, "evaluated"].start, AUX_SLICES[1, "evaluated"].start)
         self._point_sl = (AUX_SLICES[0, "point"], AUX_SLICES[1, "point"])
+        # readout(): one gather from [q, v (the head of x) | τ_a | aux | kept points |
+        # contact flags]: the feet's force and diagnostics from aux, the kept point
+        nqv, na, n_aux = L.nq + L.nv, L.na, len(data.aux)
+        o_aux = nqv + na
+        o_pt = o_aux + n_aux
+        take = list(range(o_aux))
+        for foot in (0, 1):
+            for part, n in READOUT_FOOT_PARTS:
+                start = (o_pt + 3 * foot if part == "point"
+                         else o_aux + AUX_SLICES[foot, part].start)
+                take += range(start, start + n)
+        take += [o_pt + 6, o_pt + 7]
+        self._qv = slice(0, nqv)
+        # q and v: copies of these slices of the state (the compiled data's x, updated in place)
+        self._x, self._q_sl, self._v_sl = data.x, L.q, L.v
+        self._readout_take = np.array(take, dtype=np.intp)
 
     @property
     def pin(self):
@@ -199,11 +215,11 @@ class FastPlantData:
 
     @property
     def q(self) -> np.ndarray:
-        return self.data.x[self.data.layout.q].copy()
+        return self._x[self._q_sl].copy()
 
     @property
     def v(self) -> np.ndarray:
-        return self.data.x[self.data.layout.v].copy()
+        return self._x[self._v_sl].copy()
 
     @property
     def tau(self) -> np.ndarray:
@@ -244,6 +260,16 @@ class FastPlantData:
     def foot_diag(self, foot: int) -> np.ndarray:
         """Mean over the foot's patches of (depth, f_cap_z, x_s, y_s, z_s, ψ_c)."""
         return aux_foot(self.data.aux, foot, "diag").copy()
+
+    def readout(self) -> np.ndarray:
+        """The state and the contact read-outs as one flat vector, the layout of
+        :meth:`~.plant.PlantData.readout` (:func:`~.plant.readout_offsets`): the values of
+        :attr:`q`, :attr:`v`, :attr:`tau_a`, per foot :meth:`foot_force`,
+        :meth:`foot_point`, :meth:`foot_diag`, then :meth:`foot_in_contact` (1.0 / 0.0)."""
+        data = self.data
+        contact = _max_reduce(self._contact_flags, 1) > 0.5
+        return np.concatenate((data.x[self._qv], data.tau, data.aux, self._point.ravel(),
+                               contact))[self._readout_take]
 
 
 #: the reduction :meth:`FastPlantData.foot_in_contact` calls directly

@@ -363,5 +363,41 @@ class PlantData:
         """Mean over the foot's patches of (depth, f_cap_z, x_s, y_s, z_s, ψ_c)."""
         return self.contact.feet[foot].diag.mean(axis=0)
 
+    def readout(self) -> np.ndarray:
+        """The state and the contact read-outs as one flat vector (layout
+        :func:`readout_offsets`): the values of ``q``, ``v``, :attr:`tau_a` and, per foot,
+        :meth:`foot_force`, :meth:`foot_point`, :meth:`foot_diag`, then both feet's
+        :meth:`foot_in_contact` as 1.0 / 0.0 — what a log row reads, in one array."""
+        parts = [self.q, self.v, self.tau[self._idx_v]]
+        for foot in (0, 1):
+            parts += (self.foot_force(foot), self.foot_point(foot), self.foot_diag(foot))
+        parts.append([float(self.foot_in_contact(0)), float(self.foot_in_contact(1))])
+        return np.concatenate(parts)
 
-__all__ = ["Plant", "PlantData"]
+
+#: layout of :meth:`PlantData.readout` (and ``FastPlantData.readout``, offsets
+#: :func:`readout_offsets`):
+#: ``[q (nq) | v (nv) | τ_a (na) | per foot, left first: force in W [N] (3), contact point
+#: in W [m] (3), diagnostics (depth, f_cap_z, x_s, y_s, z_s, ψ_c) (6) | in contact (2)]``;
+#: the per-foot parts in order, with their sizes
+READOUT_FOOT_PARTS = (("force", 3), ("point", 3), ("diag", 6))
+#: size of one foot's block in a read-out
+READOUT_PER_FOOT = sum(n for _, n in READOUT_FOOT_PARTS)
+
+
+def readout_offsets(nq: int, nv: int, na: int) -> dict:
+    """Offsets in a read-out vector (:meth:`PlantData.readout`): ``"q"``, ``"v"``,
+    ``"tau_a"``, ``(foot, part)`` for each of :data:`READOUT_FOOT_PARTS`, ``"contact"``
+    (two entries, left first), ``"size"``."""
+    off = {"q": 0, "v": nq, "tau_a": nq + nv}
+    k = nq + nv + na
+    for foot in (0, 1):
+        for part, n in READOUT_FOOT_PARTS:
+            off[foot, part] = k
+            k += n
+    off["contact"] = k
+    off["size"] = k + 2
+    return off
+
+
+__all__ = ["Plant", "PlantData", "READOUT_FOOT_PARTS", "READOUT_PER_FOOT", "readout_offsets"]
