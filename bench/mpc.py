@@ -14,7 +14,9 @@ closed loop does; the assembly is identical in both (``QPNumerics.scaled`` only 
 With ``--old-tree DIR`` (another checkout, e.g. ``git archive HEAD | tar -x -C DIR``) its
 ``granular_mpc/control/mpc.py`` is loaded as a module of this package (its own assembly and
 tick, this tree's config, ground model and ProxSuite wrapper) and replayed too, interleaved,
-with both settings: suffixes ``_oldtree`` (``scaled``) and ``_oldtree_newton``.
+with both settings: suffixes ``_oldtree`` (``scaled``) and ``_oldtree_newton``. Suffix
+``_daqp``: ``controller.mpc.qp: daqp`` (the ``scaled`` QP solved by DAQP; its iterations are
+active-set changes, not ProxSuite's).
 
 Prints per setting (suffix ``_old``; no suffix = new): ``mpc_assembly_ms_median`` (building
 the QP, ``MPCPlan.build_ms``), ``mpc_solve_ms_median`` / ``_p99`` (ProxSuite's update and
@@ -166,7 +168,8 @@ def main(argv=None) -> dict:
     with threadpool_limits(limits=1, user_api="blas"):   # as the closed loop runs
         mpc, ticks = record_ticks(args.seconds, args.speed, args.terrain)
         load0 = os.getloadavg()[0]
-        models = {"new": new_settings(mpc), "old": old_settings(mpc)}
+        models = {"new": new_settings(mpc), "old": old_settings(mpc),
+                  "daqp": mpc.with_qp("daqp")}
         if args.old_tree:
             old = old_tree_mpc(mpc, args.old_tree)
             models.update(oldtree=new_settings(old), oldtree_newton=old_settings(old))
@@ -181,7 +184,7 @@ def main(argv=None) -> dict:
     figs = figures(runs, dist, (load0,))
     figs["mpc_ticks"] = float(len(ticks))
     units = {}
-    for sfx in ("_old", "", "_oldtree", "_oldtree_newton"):
+    for sfx in ("_old", "", "_daqp", "_oldtree", "_oldtree_newton"):
         units.update({f"_ms_median{sfx}": "ms", f"_ms_p99{sfx}": "ms", f"_ms_mean{sfx}": "ms",
                       f"_n_median{sfx}": "N", f"_n_max{sfx}": "N"})
     emit(figs, args.json, units)

@@ -7,7 +7,7 @@ import pytest
 
 from granular_mpc.config import MPCConfig
 from granular_mpc.control.contact_model import ground_model
-from granular_mpc.control.mpc import CentroidalMPC
+from granular_mpc.control.mpc import CentroidalMPC, predicted_sinkage
 from granular_mpc.rotations import rot_z, skew
 from granular_mpc.control.solvers.proxqp import QPSolution, QPStatus
 
@@ -195,10 +195,35 @@ def test_sinkage_prediction_is_plastic(sand):
     forces[:, 0, :, 2] = np.array([20, 60, 100, 50, 10, 80])[:, None] / 2
     contacts = np.zeros((N, 2), dtype=bool)
     contacts[:, 0] = True
-    z = mpc._predicted_sinkage(forces, contacts)[:, 0]
+    z = predicted_sinkage(mpc.ground, forces, contacts)[:, 0]
     assert np.all(np.diff(z) >= 0.0)                      # never comes back up
     assert z[2] == pytest.approx(mpc.ground.sinkage(100.0))
     assert z[-1] == pytest.approx(z[2])
+
+
+def test_predicted_sinkage_is_the_deepest_z_of_each_stance_stretch(sand, rigid):
+    """The vectorised prediction is, bit for bit, the deepest Z(F_z) of the loads so far
+    in each foot's current stance stretch (reset in swing), Z evaluated point by point
+    by ``GroundModel.sinkage``; zero on rigid ground. Random forces (some negative, some
+    repeated peaks) and random schedules."""
+    rng = np.random.default_rng(11)
+    gm = make(sand, 8).ground
+    for trial in range(200):
+        N = int(rng.integers(1, 16))
+        forces = rng.uniform(-20.0, 200.0, (N, 2, 2, 3))
+        if trial % 3 == 0:
+            forces[1::2] = forces[0:N - 1:2][: len(forces[1::2])]   # repeated loads
+        contacts = rng.random((N, 2)) < 0.7
+        fz = forces[..., 2].sum(axis=2)
+        expected = np.zeros((N, 2))
+        for f in range(2):
+            depth = 0.0
+            for k in range(N):
+                depth = max(depth, gm.sinkage(float(fz[k, f]))) if contacts[k, f] else 0.0
+                expected[k, f] = depth
+        assert np.array_equal(predicted_sinkage(gm, forces, contacts), expected)
+    rigid_gm = make(rigid, 8).ground
+    assert not predicted_sinkage(rigid_gm, forces, contacts).any()
 
 
 def test_skew_is_the_cross_product():

@@ -208,6 +208,65 @@ def test_compiled_assembly_builds_the_numpy_reference_qp(biped, sand, rigid, ter
         np.testing.assert_allclose(tau_c, tau_n, atol=1e-6 * max(1.0, np.abs(tau_n).max()))
 
 
+@pytest.mark.parametrize("solver", ["proxsuite", "daqp"])
+def test_compiled_torques_are_the_dynamics_of_the_solution(biped, sand, solver):
+    """The compiled torque read-out (the default path) returns, for the QP solution it
+    was handed, ``τ = (M q̈ + h − Σ Jᵢᵀ fᵢ)`` of the actuated rows, clipped to the limits
+    and in actuator order — evaluated here independently with Pinocchio (CRBA, RNEA,
+    frame Jacobians) to round-off (≤ 1e-12 of the terms' magnitudes), over random states
+    in every stance pair."""
+    if compiler() is None or os.environ.get("GRANULAR_MPC_JIT", "1") == "0":
+        pytest.skip("nothing compiled (no C compiler or GRANULAR_MPC_JIT=0): NumPy read-out")
+    ctrl = WalkingController.build(ControllerConfig(), CommandConfig(), biped, sand)
+    wbc = with_solver(ctrl.wbc, solver)
+    data = wbc.new_data()
+    solutions = record_solutions(data)
+    m, nv = biped.model, biped.model.nv
+    d = m.createData()
+    rng = np.random.default_rng(12)
+    stances = [(True, True), (True, False), (False, True), (False, False)]
+    clipped = 0
+    for trial in range(16):
+        q = balanced_stance(biped)
+        q[7:] += rng.normal(0.0, 0.2, nv - 6)
+        v = rng.normal(0.0, 0.5, nv)
+        pin.framesForwardKinematics(m, data.pin, q)
+        feet = ctrl.foot_points(data.pin)
+        forces = rng.uniform(0.0, 80.0, (2, 2, 3))
+        ref = reference(ctrl, q, stances[trial % 4], forces)
+        tau = wbc.solve(data, q, v, ref, feet)
+        assert data.last_status.ok
+        x = solutions[-1].x
+        qdd, f = x[:nv], x[nv:].reshape(2, 2, 3)
+        M = pin.crba(m, d, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        h = pin.nle(m, d, q, v)
+        pin.computeJointJacobians(m, d, q)
+        pin.framesForwardKinematics(m, d, q)
+        JTf, scale_f = np.zeros(nv), np.zeros(nv)
+        for i, side in enumerate(("left", "right")):
+            J6 = pin.getFrameJacobian(m, d, biped.foot_frame[side], pin.LOCAL_WORLD_ALIGNED)
+            for k, r in enumerate(feet[i].offsets):
+                Jp = J6[:3] - pin.skew(r) @ J6[3:]
+                JTf += Jp.T @ f[i, k]
+                scale_f += np.abs(Jp.T) @ np.abs(f[i, k])
+        lim = biped.torque_limits[np.argsort(biped.idx_v)]      # v order of the joints
+        for gain in (1.0, 30.0):
+            # the solution itself, and 30 × it through the same read-out (torques beyond
+            # the limits: the clip)
+            if gain != 1.0:
+                data.assembly.torques(gain * x)
+                tau = data.assembly.tau_act.copy()
+            full = M @ (gain * qdd) + h - gain * JTf
+            scale = gain * np.abs(M) @ np.abs(qdd) + np.abs(h) + gain * scale_f
+            expected = np.clip(full[6:], -lim, lim)
+            clipped += int(np.sum(np.abs(full[6:]) > lim))
+            got = np.empty(nv - 6)
+            got[biped.idx_v - 6] = tau                  # actuator order → v order
+            assert np.all(np.abs(got - expected) <= 1e-12 * scale[6:])
+    assert clipped > 0          # the clip was exercised
+
+
 def test_free_flyer_placement_is_the_quaternion_matrix(biped):
     """The compiled assembly and the run log take the trunk's rotation from Pinocchio's
     free-flyer placement instead of building it from q's quaternion: the two are the same

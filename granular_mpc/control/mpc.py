@@ -43,6 +43,7 @@ from ..exceptions import ConfigError
 from ..rotations import rot_z, skew, skew_rows
 from .contact_model import GroundModel
 from .mpc_assembly import MPCAssemblyCaller, MPCAssemblyConstants, compile_assembly
+from .solvers.daqp import DAQPSolver
 from .solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
 
 BIG = 1e20
@@ -55,7 +56,10 @@ class QPNumerics:
     """How the MPC's QP is posed to ProxSuite (``MPCConfig.qp`` names one, :data:`QP_SETTINGS`).
 
     Attributes:
-        backend: ProxSuite dense backend (``DENSE_BACKENDS`` of :mod:`.solvers.proxqp`).
+        backend: ProxSuite dense backend (``DENSE_BACKENDS`` of :mod:`.solvers.proxqp`), or
+            ``daqp``: the QP solved by DAQP (:class:`.DAQPSolver`, dual active set, exact to
+            round-off, hot-started from the previous active set) instead of ProxSuite; then
+            ``mu_in_reset``, ``eps_abs`` and ``eps_primal_inf`` do not apply.
         scaled: QP variables in units of the robot's weight m g instead of newtons (the
             forces' Hessian weight becomes ``weight_force``·(m g)² ≈ 0.1 instead of 1e-5);
             the constraint rows stay in newtons, the box bounds are in m g.
@@ -79,13 +83,48 @@ class QPNumerics:
 #: μ_in kept from solve to solve. H's smallest eigenvalue is then the force weight, 1e-5,
 #: so eps_abs = 1e-4 fixes the forces only to ≈ 10 N (measured: warm-started plans land
 #: 4.6 N median, 16 N worst from the QP's optimum), and μ_in shrinks 0.1 → 1e-8 over ≈ 40
-#: ticks (the 1000-iteration solves of the p99). ``scaled`` fixes both (≈ 0.003 N from the
-#: optimum); it plans different forces, so it is opt-in until the documented results are
-#: re-measured with it (docs/speed.md, "The MPC tick (issue 12)").
+#: ticks (the 1000-iteration solves of the p99). ``scaled`` fixes both; its eps_abs 1e-5
+#: (1e-4 before session 20: measured ≈ 0.003 N median, 11.7 N worst from the optimum; at
+#: 1e-5 0.0085 N worst, solves ≈ 2 % longer); it plans different forces, so it is opt-in
+#: until the documented results are re-measured with it (docs/speed.md, "The MPC tick
+#: (issue 12)").
+#: ``daqp`` (opt-in, proposed in session 20): the ``scaled`` QP solved exactly by DAQP —
+#: measured on 60 recorded sand-walk ticks: solve 0.235 ms median against ProxSuite's
+#: 0.47–0.53 ms, forces within 0.0082 N of the ``scaled`` plan's (docs/speed.md, "WBC
+#: call and MPC read-out, round 2").
 QP_SETTINGS: dict[str, QPNumerics] = {
     "newton": QPNumerics("automatic", False, None, 1e-4, None),
-    "scaled": QPNumerics("primal_dual_ldlt", True, 0.1, 1e-4, 1e-6),
+    "scaled": QPNumerics("primal_dual_ldlt", True, 0.1, 1e-5, 1e-6),
+    "daqp": QPNumerics("daqp", True, None, 1e-5, None),
 }
+
+
+def predicted_sinkage(ground: GroundModel, forces: np.ndarray,
+                      contacts: np.ndarray) -> np.ndarray:
+    """Plastic sinkage of each foot at each step [m], ``(N, 2)``: ``max_{j≤k} Z(F_z,j)``
+    over the current stance (reset in swing), for planned forces ``forces``
+    ``(N, 2, n_points, 3)`` [N] and stance flags ``contacts`` ``(N, 2)``; zero on rigid
+    ground. Z is non-decreasing, so the deepest point is ``Z(max_{j≤k} F_z,j)``: one Z
+    evaluation per rise of the running peak (measured: a vectorised Z of all the rises,
+    with the second pass it needs, saves ≈ 2 µs per MPC tick at best — not worth it)."""
+    N = forces.shape[0]
+    out = np.zeros((N, 2))
+    if not ground.granular:
+        return out
+    fz = forces[..., 2].sum(axis=2).tolist()        # (N, 2) foot normal forces [N]
+    cont = np.asarray(contacts, dtype=bool).tolist()
+    sinkage = ground.sinkage
+    for f in (0, 1):
+        peak, depth = None, 0.0
+        for k in range(N):
+            if not cont[k][f]:
+                peak, depth = None, 0.0
+                continue
+            if peak is None or fz[k][f] > peak:
+                peak = fz[k][f]
+                depth = max(depth, sinkage(peak))
+            out[k, f] = depth
+    return out
 
 
 @dataclass
@@ -133,13 +172,17 @@ class MPCWork:
     ub: np.ndarray              # (nu,)
     block_index: np.ndarray | None = None       # arange(max_pairs)
     assembly: MPCAssemblyCaller | None = None   # the compiled assembly (None: NumPy)
+    #: the QP over the arrays above, handed to the solver each tick; with DAQP the arrays
+    #: are views of the solver's own stacked problem (:meth:`.DAQPSolver.new_problem`),
+    #: which it then reads without a copy
+    problem: QPProblem | None = None
 
 
 @dataclass
 class MPCData:
     """Changing part of the MPC: the persistent solver, the last plan, the work arrays."""
 
-    solver: ProxQPSolver
+    solver: ProxQPSolver | DAQPSolver
     last: MPCPlan | None = None
     failures: int = 0
     solves: int = 0
@@ -206,26 +249,39 @@ class CentroidalMPC:
 
     def new_data(self) -> MPCData:
         qp = self.qp
+        if qp.backend == "daqp":
+            solver = DAQPSolver(self.nu, 0, self.n_in, box=True, max_iter=1000)
+            return MPCData(solver, work=self._new_work(solver))
         return MPCData(ProxQPSolver(self.nu, 0, self.n_in, box=True, eps_abs=qp.eps_abs,
                                     max_iter=100, backend=qp.backend,
                                     mu_in_reset=qp.mu_in_reset,
                                     eps_primal_inf=qp.eps_primal_inf),
                        work=self._new_work())
 
-    def _new_work(self) -> MPCWork:
+    def _new_work(self, solver: ProxQPSolver | DAQPSolver | None = None) -> MPCWork:
+        """The work arrays; for a :class:`.DAQPSolver` the QP buffers are views of its
+        stacked problem (filled here with the same initial values as the own arrays)."""
         poly = self.ground.polytope
         nu, n_in = self.nu, self.n_in
-        C = np.zeros((n_in, nu))
+        if isinstance(solver, DAQPSolver):
+            qp = solver.new_problem()
+            for arr, value in ((qp.H, 0.0), (qp.g, 0.0), (qp.C, 0.0), (qp.l, -BIG),
+                               (qp.u, 0.0), (qp.lb, 0.0), (qp.ub, 0.0)):
+                arr.fill(value)
+        else:
+            qp = QPProblem(np.zeros((nu, nu)), np.zeros(nu), None, None, np.zeros((n_in, nu)),
+                           np.full(n_in, -BIG), np.zeros(n_in), np.zeros(nu), np.zeros(nu))
+        C = qp.C
         work = MPCWork(
             q_rep=np.tile(self._q_diag(), self.N),
             inertia_inv_B=np.linalg.inv(self.inertia_B),
             steps=np.arange(1, self.N + 1, dtype=float)[:, None],
             cone=poly.G[poly.cone_rows], capacity_rows=poly.G[poly.capacity_rows],
             h_capacity=poly.h[poly.capacity_rows],
-            H=np.zeros((nu, nu)), g=np.zeros(nu), C=C,
+            H=qp.H, g=qp.g, C=C,
             C4=C.reshape(self.max_pairs, self.rows_per_pair, self.max_pairs, self.nu_pair),
-            l=np.full(n_in, -BIG), u=np.zeros(n_in), lb=np.zeros(nu), ub=np.zeros(nu),
-            block_index=np.arange(self.max_pairs))
+            l=qp.l, u=qp.u, lb=qp.lb, ub=qp.ub,
+            block_index=np.arange(self.max_pairs), problem=qp)
         if self.assembly not in ASSEMBLIES:
             raise ConfigError(f"unknown MPC assembly {self.assembly!r}", key="assembly",
                               value=self.assembly, allowed=", ".join(ASSEMBLIES))
@@ -285,7 +341,7 @@ class CentroidalMPC:
         t0 = time.perf_counter()
         w = data.work
         if w is None:
-            w = data.work = self._new_work()
+            w = data.work = self._new_work(data.solver)
         # one variable block per (step, foot in contact), in (step, foot) order
         ks, fs = np.nonzero(contacts)
         if len(ks) > self.max_pairs:   # more contacts than planned for: keep the loaded ones
@@ -303,7 +359,7 @@ class CentroidalMPC:
             w.H += w.H.T
             w.H *= 0.5
         build_ms = (time.perf_counter() - t0) * 1e3
-        sol = data.solver.solve(QPProblem(w.H, w.g, None, None, w.C, w.l, w.u, w.lb, w.ub))
+        sol = data.solver.solve(w.problem)
         data.solves += 1
         fallback = ""
         fu = self.force_unit
@@ -317,7 +373,7 @@ class CentroidalMPC:
         forces = np.zeros((N, 2, nps, 3))
         forces[ks, fs] = U[:na].reshape(P, nps, 3)
         states = states_of(U)
-        sink = self._predicted_sinkage(forces, contacts)
+        sink = predicted_sinkage(self.ground, forces, contacts)
         plan = MPCPlan(t, forces, states, np.array(contacts, copy=True), sink, sol.status,
                        sol.solve_ms, build_ms, fallback)
         data.last = plan
@@ -458,29 +514,6 @@ class CentroidalMPC:
         out[:, 2] = x0[2] + (out[:, 2] - x0[2] + math.pi) % (2.0 * math.pi) - math.pi
         return out
 
-    def _predicted_sinkage(self, forces: np.ndarray, contacts: np.ndarray) -> np.ndarray:
-        """Plastic sinkage of each foot at each step [m]: ``max_{j≤k} Z(F_z,j)`` over the
-        current stance (reset in swing). Z is non-decreasing, so the deepest point is
-        ``Z(max_{j≤k} F_z,j)``: one Z evaluation per distinct running maximum."""
-        N = forces.shape[0]
-        out = np.zeros((N, 2))
-        if not self.ground.granular:
-            return out
-        fz = forces[..., 2].sum(axis=2).tolist()        # (N, 2) foot normal forces [N]
-        cont = np.asarray(contacts, dtype=bool).tolist()
-        sinkage = self.ground.sinkage
-        for f in (0, 1):
-            peak, depth = None, 0.0
-            for k in range(N):
-                if not cont[k][f]:
-                    peak, depth = None, 0.0
-                    continue
-                if peak is None or fz[k][f] > peak:
-                    peak = fz[k][f]
-                    depth = max(depth, sinkage(peak))
-                out[k, f] = depth
-        return out
-
     def _fallback(self, data: MPCData, t: float, pairs: list,
                   nominal_load: np.ndarray) -> tuple[np.ndarray, str]:
         """Shifted previous plan where it covers a pair, else nominal (gravity-sharing)
@@ -505,4 +538,4 @@ class CentroidalMPC:
 
 
 __all__ = ["ASSEMBLIES", "CentroidalMPC", "MPCData", "MPCPlan", "MPCWork", "QPNumerics",
-           "QP_SETTINGS", "rot_z", "skew"]
+           "QP_SETTINGS", "predicted_sinkage", "rot_z", "skew"]

@@ -186,7 +186,7 @@ class WholeBodyController:
         """The compiled assembly writing into ``work``'s QP arrays (None: NumPy assembly)."""
         if self.assembly != "compiled":
             return None
-        fns = _compiled(self.assembly_constants())
+        fns = _compiled(self.assembly_constants(), tuple(self._torque_bounds[2].tolist()))
         if fns is None:
             return None
         return AssemblyCaller(fns, self.nv, self.n_points,
@@ -214,7 +214,41 @@ class WholeBodyController:
             tau_max=tuple(np.asarray(self.biped.torque_limits, dtype=float).tolist()),
             G=tuple(map(tuple, np.asarray(self.ground.polytope.G, dtype=float).tolist())),
             h_point=tuple(np.asarray(poly.h, dtype=float).tolist()),
-            f_max_point=float(poly.f_max))
+            f_max_point=float(poly.f_max),
+            foot_placement=tuple(
+                tuple(self.biped.model.frames[fid].placement.rotation.ravel("F").tolist()
+                      + self.biped.model.frames[fid].placement.translation.tolist())
+                for fid in self._foot_frames),
+            foot_support=tuple(self._support_columns(self._foot_joints[i]) for i in range(2)))
+
+    @cached_property
+    def _foot_frames(self) -> tuple[int, int]:
+        """The foot frames' ids (left, right)."""
+        return self.biped.foot_frame[SIDES[0]], self.biped.foot_frame[SIDES[1]]
+
+    @cached_property
+    def _foot_joints(self) -> tuple[int, int]:
+        """The foot frames' parent joints (left, right)."""
+        return tuple(int(self.biped.model.frames[fid].parentJoint) for fid in self._foot_frames)
+
+    def _support_columns(self, joint: int) -> tuple[int, ...]:
+        """The velocity columns the placement of ``joint`` depends on (its support's)."""
+        model = self.biped.model
+        return tuple(c for j in list(model.supports[joint])[1:]
+                     for c in range(model.idx_vs[j], model.idx_vs[j] + model.nvs[j]))
+
+    def _pinocchio_inputs(self, pd: pin.Data) -> dict[str, np.ndarray]:
+        """The compiled assembly's inputs as views of ``pd``'s storage (:mod:`.wbc_qp`'s
+        ``INPUTS`` but ``p``; the trunk's rotation only with a free flyer, whose placement it
+        is — else :meth:`_assemble_compiled` copies it in each tick)."""
+        out = {"M": pd.M, "h": pd.nle, "Jcom": pd.Jcom, "J": pd.J, "com": pd.com[0],
+               "vcom": pd.vcom[0], "acom": pd.acom[0]}
+        if self._free_flyer:
+            out["R"] = pd.oMi[1].rotation
+        for s, j in zip("lr", self._foot_joints):
+            out.update({f"R_{s}": pd.oMi[j].rotation, f"p_{s}": pd.oMi[j].translation,
+                        f"v_{s}": pd.v[j].vector, f"a_{s}": pd.a[j].vector})
+        return out
 
     @cached_property
     def _torque_bounds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -280,6 +314,13 @@ class WholeBodyController:
         data.last_ms = (time.perf_counter() - t0) * 1e3
         data.solves += 1
         data.last_status = sol.status
+        if sol.status.ok and mJT_a is not None and data.assembly.torque is not None:
+            # τ = M_a q̈ + h_a − J_aᵀ f, clipped and put in actuator order by compiled code
+            # (wbc_qp.torque_function: the same sums and clip as the NumPy lines below)
+            a = data.assembly
+            a.torques(sol.x)
+            data.last_tau = a.tau.copy()
+            return a.tau_act.copy()
         if sol.status.ok:
             x = sol.x
             if data.keep_residuals:
@@ -445,26 +486,25 @@ class WholeBodyController:
     def _assemble_compiled(self, data: WBCData, q: np.ndarray, v: np.ndarray,
                            ref: WBCReference, feet: tuple[FootPoints, FootPoints]) -> np.ndarray:
         """Build the QP in ``data.work`` with the compiled assembly (:mod:`.wbc_qp`);
-        returns the actuated rows of the nonlinear effects ``h_a`` [N·m]."""
+        returns the actuated rows of the nonlinear effects ``h_a`` [N·m].
+
+        The compiled function reads Pinocchio's terms where Pinocchio writes them (views of
+        ``data.pin``'s storage, bound once): M, h, the joint and CoM Jacobians, the CoM
+        terms, the trunk's placement and the feet's parent joints' placements, velocities
+        and drift accelerations, from which it forms the foot frames' terms itself. Only
+        the references, the contact offsets and the trunk's orientation error are copied
+        (one concatenate into the packed input)."""
         b = self.biped
         model, pd = b.model, data.pin
         a = data.assembly
         if a.owner is not pd:
-            # the compiled assembly reads M, h and the CoM Jacobian where Pinocchio writes
-            # them (views of this Data's storage; the same numbers as copies, no copy)
-            a.bind_inputs(pd.M, pd.nle, pd.Jcom, owner=pd)
+            a.bind_inputs(self._pinocchio_inputs(pd), owner=pd)
         pin.computeAllTerms(model, pd, q, v)
         pin.updateFramePlacements(model, pd)
-        com = pin.centerOfMass(model, pd, _ACCELERATION, False)
-        fl, fr = b.foot_frame[SIDES[0]], b.foot_frame[SIDES[1]]
-        a.J6[:6] = pin.getFrameJacobian(model, pd, fl, _LWA)
-        a.J6[6:] = pin.getFrameJacobian(model, pd, fr, _LWA)
-        oMl, oMr = pd.oMf[fl], pd.oMf[fr]
-        # the trunk's rotation from q's quaternion (x, y, z, w): Pinocchio's placement of
-        # the free-flyer joint, the same numbers as matrix_from_quat_xyzw(q[3:7]) bit for
-        # bit (the same formula; tests/test_wbc.py), without building it in Python
-        R = (np.ascontiguousarray(pd.oMi[1].rotation) if self._free_flyer
-             else matrix_from_quat_xyzw(q[3:7]))
+        pin.centerOfMass(model, pd, _ACCELERATION, False)
+        R = a.inputs["R"]
+        if not self._free_flyer:
+            R[:] = matrix_from_quat_xyzw(q[3:7])
         if ref.force_cap is not None:
             f_max = self.ground.polytope.f_max
             share = (min(max(float(ref.force_cap[0]) / f_max, 0.0), 1.0),
@@ -474,29 +514,25 @@ class WholeBodyController:
         w_force = self.config.w_force if ref.force_weight is None else ref.force_weight
         # the packed input p, in the order of wbc_qp.PACKED, written in one call
         np.concatenate((
-            com, pd.vcom[0], pd.acom[0],
-            pin.getFrameClassicalAcceleration(model, pd, fl, _LWA).vector,
-            pin.getFrameClassicalAcceleration(model, pd, fr, _LWA).vector,
-            pin.getFrameVelocity(model, pd, fl, _LWA).vector,
-            pin.getFrameVelocity(model, pd, fr, _LWA).vector,
-            oMl.rotation.ravel("F"), oMr.rotation.ravel("F"), oMl.translation, oMr.translation,
             feet[0].offsets.ravel(), feet[1].offsets.ravel(),
-            R.ravel("F"), v[3:6], pin.log3(ref.R_trunk @ R.T), ref.omega, ref.com,
+            v[3:6], pin.log3(ref.R_trunk @ R.T), ref.omega, ref.com,
             ref.com_vel, ref.com_acc, ref.forces.ravel(), ref.swing_pos.ravel(),
             ref.swing_vel.ravel(), ref.swing_acc.ravel(), ref.sink_accel, (w_force,), share),
             out=a.p)
         a((bool(ref.stance[0]), bool(ref.stance[1])))
-        return a.h[6:]
+        return a.inputs["h"][6:]
 
 
 _COMPILED: dict = {}
 
 
-def _compiled(constants: AssemblyConstants):
-    """The compiled assembly functions for these constants, built once per process."""
-    if constants not in _COMPILED:
-        _COMPILED[constants] = compile_assembly(constants)
-    return _COMPILED[constants]
+def _compiled(constants: AssemblyConstants, actuator_rows: tuple):
+    """The compiled assembly and torque read-out for these constants and the rows taking
+    v order to actuator order, built once per process."""
+    key = (constants, actuator_rows)
+    if key not in _COMPILED:
+        _COMPILED[key] = compile_assembly(constants, actuator_rows)
+    return _COMPILED[key]
 
 
 __all__ = ["WholeBodyController", "WBCReference", "WBCData", "WBCWork", "FootPoints"]
