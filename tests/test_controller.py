@@ -153,11 +153,12 @@ def test_rigid_assumption_controller_on_sand_uses_rigid_limits(biped, sand, rigi
     # the plant is sand whatever the controller believes: measured 110 mm (the feet plough)
     assert w.max_depth > sand.quasi_static_depth(biped.weight)
     # the outcome: it falls (at ≈ 3.1 s since the touchdown hand-over fix; ≈ 1.7 s before
-    # it). Measured (generic build, 4 s) tilt 180°, trunk −0.51 m, 53 failed QPs. Bounds:
-    # tilt > 15° and trunk < 0.3 m (the "upright" limit above), at least one failed QP
+    # it). Measured (generic build, 4 s) tilt 180°, trunk −0.51 m. Bounds: tilt > 15° and
+    # trunk < 0.3 m (the "upright" limit above). (With ProxSuite as the WBC's solver, the
+    # default before session 20, 53 QPs also failed on the way down; DAQP's active set
+    # solves them: the fall is the outcome, not the failed QPs.)
     assert w.worst_tilt_deg > 15.0
     assert w.plant.q[2] < 0.3
-    assert w.ctrl.qp_failures > 0
 
 
 def test_foot_points_are_the_lowest_points_of_the_sole_slices(biped, sand):
@@ -183,6 +184,22 @@ def test_foot_points_are_the_lowest_points_of_the_sole_slices(biped, sand):
                             for y in biped.slice_offsets])
             np.testing.assert_array_equal(feet[i].points, ref)
             np.testing.assert_array_equal(feet[i].offsets, ref - oMf.translation)
+        # the tick's form: the same points, and each foot's mean point as floats (numpy's
+        # mean: the same numbers)
+        (left, right), means = ctrl.sole_contacts(pd)
+        for fp, ref_fp, mean in zip((left, right), feet, means):
+            np.testing.assert_array_equal(fp.points, ref_fp.points)
+            np.testing.assert_array_equal(fp.offsets, ref_fp.offsets)
+            assert list(mean) == ref_fp.points.mean(axis=0).tolist()
+    # another Pinocchio data (the controller keeps views of the last one's placements):
+    # its own placements are read, and the first data's again after it
+    pd2 = biped.create_data()
+    pin.framesForwardKinematics(biped.model, pd2, balanced_stance(biped))
+    for data in (pd2, pd):
+        oMf = data.oMf[biped.foot_frame["left"]]
+        np.testing.assert_allclose(ctrl.foot_points(data)[0].offsets + oMf.translation,
+                                   ctrl.foot_points(data)[0].points, rtol=0, atol=1e-15)
+    assert not np.array_equal(ctrl.foot_points(pd2)[0].points, ctrl.foot_points(pd)[0].points)
 
 
 def test_command_velocity_is_the_ticks_reference_or_the_ramps(biped, sand):

@@ -24,9 +24,9 @@ from ..rotations import matrix_from_quat_xyzw, rot_z
 from ..terrain.base import TerrainModel
 from .contact_model import GroundModel, ground_model
 from .gait import LEFT, CommandRamp, GaitSchedule, foothold, predict_com, predict_dcm
-from .horizon import HorizonConstants, mean_point, plan_horizon, sole_depth
+from .horizon import HorizonConstants, plan_horizon
 from .mpc import CentroidalMPC, MPCData, MPCPlan
-from .swing import cycloid
+from .swing import cycloid_components
 from .wbc import FootPoints, WBCData, WBCReference, WholeBodyController
 
 
@@ -82,6 +82,44 @@ def nominal_forces(stance: tuple[bool, bool], weight: float, n_points: int) -> n
         if stance[i]:
             forces[i, :, 2] = weight / n_st / n_points
     return forces
+
+
+_ZERO3 = (0.0, 0.0, 0.0)
+_NO_TURN = np.zeros(3)                  # the trunk's angular velocity reference (read-only)
+_NO_TURN.flags.writeable = False
+
+
+@dataclass(frozen=True)
+class TickConstants:
+    """What :meth:`WalkingController.compute` reads at every tick but is fixed per run.
+
+    Attributes:
+        dt: MPC step [s]; N: MPC horizon [steps]; mpc_period: 1 / MPC rate [s].
+        mass: robot mass [kg]; gravity: (0, 0, −g) in W [m/s²] (read-only).
+        start_delay: the command's start delay [s].
+        k_speed_integral: foothold speed-integral gain [1/s]; integral_limit: the
+            integral's bound [m].
+        half_period: half the gait period [s]; max_lateral: largest lateral CoM–foot
+            offset the ground can push back [m]; target_z: swing targets' height [m, W].
+        sole_radius: sole arc radius [m]; swing_height: swing apex [m]; swing_duration [s].
+        foot_frames: the feet's frame ids (left, right).
+    """
+
+    dt: float
+    N: int
+    mpc_period: float
+    mass: float
+    gravity: np.ndarray
+    start_delay: float
+    k_speed_integral: float
+    integral_limit: float
+    half_period: float
+    max_lateral: float
+    target_z: float
+    sole_radius: float
+    swing_height: float
+    swing_duration: float
+    foot_frames: tuple
 
 
 @dataclass(frozen=True)
@@ -214,23 +252,55 @@ class WalkingController:
         lowest point is its centre ``p + y e_y`` plus the arc point
         ``R sin ψ e_x − R cos ψ e_z``, with ψ the world-down direction in the slice plane
         clipped to the sole's half-angle; ψ is the same for every slice of a foot."""
-        blocks = []
+        return self.sole_contacts(pdata)[0]
+
+    def sole_contacts(self, pdata: pin.Data) -> tuple[tuple[FootPoints, FootPoints], tuple]:
+        """:meth:`foot_points` and each foot's mean contact point ``(x, y, z)`` [m, W] as
+        Python floats (``mean_point``'s numbers: the points summed in order, divided by n).
+        """
         R_arc, half, ys, frames = self._sole
-        for fid in frames:
-            # the placement as one 4×4 list: rows (R row, p component), i.e. the
-            # components of (e_x, e_y, e_z) and p along W's x, y, z
-            (xx, yx, zx, px), (xy, yy, zy, py), (xz, yz, zz, pz), _ = \
-                pdata.oMf[fid].homogeneous.tolist()
+        n = len(ys)
+        flat: list = []
+        means = []
+        for rot, pos in self._placement_views(pdata):
+            # the rows of R (the components of e_x, e_y, e_z along W's x, y, z) and p
+            (xx, yx, zx), (xy, yy, zy), (xz, yz, zz) = rot.tolist()
+            px, py, pz = pos.tolist()
             psi = min(max(math.atan2(-xz, zz), -half), half)
             s_, c_ = R_arc * math.sin(psi), -R_arc * math.cos(psi)
             ax, ay, az = s_ * xx + c_ * zx, s_ * xy + c_ * zy, s_ * xz + c_ * zz
             pts = [((px + y * yx) + ax, (py + y * yy) + ay, (pz + y * yz) + az) for y in ys]
-            # the points and their offsets from p (per component, the numbers of ``pts - p``)
-            blocks += (pts, [(x - px, y - py, z - pz) for x, y, z in pts])
-        # both feet's points and offsets as one (4, n, 3) array (one NumPy call, for
-        # speed): four contiguous blocks
-        both = np.array(blocks)
-        return FootPoints(both[0], both[1]), FootPoints(both[2], both[3])
+            sx = sy = sz = 0.0
+            for x, y, z in pts:
+                flat += (x, y, z)
+                sx += x
+                sy += y
+                sz += z
+            # their offsets from p (per component, the numbers of ``pts - p``)
+            for x, y, z in pts:
+                flat += (x - px, y - py, z - pz)
+            means.append((sx / n, sy / n, sz / n))
+        # both feet's points and offsets as one (4, n, 3) array from a flat list of floats
+        # (one NumPy call, for speed): four contiguous blocks
+        both = np.array(flat).reshape(4, n, 3)
+        return (FootPoints(both[0], both[1]), FootPoints(both[2], both[3])), tuple(means)
+
+    def _placement_views(self, pdata: pin.Data) -> tuple:
+        """Both feet's frame placements in ``pdata`` as views of its storage ((R, p) per
+        foot, left then right), made at the first call for this ``pdata`` and reused
+        (Pinocchio updates them in place; reading a view costs less than ``oMf[id]``)."""
+        cache = self._views
+        if cache.get("pdata") is not pdata:
+            cache["pdata"] = pdata
+            cache["views"] = tuple((pdata.oMf[fid].rotation, pdata.oMf[fid].translation)
+                                   for fid in self._sole[3])
+        return cache["views"]
+
+    @cached_property
+    def _views(self) -> dict:
+        """The one-entry cache of :meth:`_placement_views` (the last ``pdata`` and its
+        views)."""
+        return {}
 
     @cached_property
     def _horizon(self) -> HorizonConstants:
@@ -240,10 +310,24 @@ class WalkingController:
                                       self.com_height_ref, self.omega)
 
     @cached_property
-    def _mass_gravity(self) -> tuple[float, np.ndarray]:
-        """The robot's mass [kg] and the gravity acceleration (0, 0, −g) in W [m/s²]
-        (per-tick constants; ``Biped.mass`` sums the bodies at every call)."""
-        return self.biped.mass, np.array([0.0, 0.0, -self.biped.gravity])
+    def _tick(self) -> TickConstants:
+        """The per-run constants of :meth:`compute` (looked up once, not per tick)."""
+        c, b = self.config, self.biped
+        fh = c.foothold
+        g = np.array([0.0, 0.0, -b.gravity])
+        g.flags.writeable = False
+        return TickConstants(
+            dt=c.mpc.dt, N=self.mpc.N, mpc_period=1.0 / c.mpc.rate_hz,
+            mass=b.mass, gravity=g,
+            start_delay=self.command.start_delay,
+            k_speed_integral=fh.k_speed_integral,
+            integral_limit=fh.max_speed_correction / max(fh.k_speed_integral, 1e-9),
+            half_period=0.5 * self.schedule.period,
+            max_lateral=self.ground.lateral_ratio * c.mpc.com_height,
+            target_z=self.ground.surface_height - c.swing.touchdown_depth,
+            sole_radius=b.config.foot.radius, swing_height=c.swing.height,
+            swing_duration=self.schedule.swing_duration,
+            foot_frames=tuple(b.foot_frame[side] for side in SIDES))
 
     @cached_property
     def _sole(self) -> tuple:
@@ -253,25 +337,22 @@ class WalkingController:
         return (foot.radius, foot.half_angle, self.biped.slice_offsets.tolist(),
                 tuple(self.biped.foot_frame[side] for side in SIDES))
 
-    def _depth(self, fp: FootPoints) -> float:
-        """Depth of a foot's lowest points below the surface [m]."""
-        return sole_depth(self.ground.surface_height, fp.points)
-
-    def _force_cap_now(self, feet) -> np.ndarray:
+    def _force_cap_now(self, mean_z: tuple[float, float]) -> np.ndarray:
         """Normal force each foot may carry now [N]: the capacity at its depth plus the
         sinkage allowed over half an MPC step. The excess over the present capacity,
         ≈ F_cap'(z)·δ, is what makes the foot sink, so the look-ahead δ sets both how fast
         the load can be taken and the largest overshoot (load only as fast as it sinks)."""
         step = self.config.mpc.max_sink_rate * 0.5 * self.config.mpc.dt
-        # capacity per foot: the numbers of ground.capacities (np.interp evaluates each
-        # point alone) without its array round trip
-        cap = self.ground.capacity
-        return np.array([cap(self._depth(feet[0]) + step), cap(self._depth(feet[1]) + step)])
+        # per foot on Python floats: the depth (sole_depth's numbers, from the mean height
+        # ``mean_z`` [m] of its points) plus the look-ahead, and its capacity
+        h, cap = self.ground.surface_height, self.ground.capacity
+        return np.array((cap((h - mean_z[0]) + step), cap((h - mean_z[1]) + step)))
 
     # ------------------------------------------------------------------ the tick
     def compute(self, d: ControllerData, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Actuator torques [N·m] at time ``t`` for plant state (q, v)."""
         b = self.biped
+        k_ = self._tick
         pd = d.wbc.pin
         pin.forwardKinematics(b.model, pd, q, v)
         pin.updateFramePlacements(b.model, pd)
@@ -279,56 +360,56 @@ class WalkingController:
         # the same numbers bit for bit)
         pin.centerOfMass(b.model, pd, pin.VELOCITY, False)
         com, vcom = pd.com[0].copy(), pd.vcom[0].copy()
-        feet = self.foot_points(pd)
+        # the tick's scalar arithmetic on Python floats (NumPy scalars cost more per
+        # operation; the numbers are the same)
+        (cx, cy, _), (vx, vy, _) = com.tolist(), vcom.tolist()
+        feet, means = self.sole_contacts(pd)
         stance = self.schedule.contacts(t)
         # lift-off bookkeeping
-        for i, side in enumerate(SIDES):
+        for i in range(2):
             if d.was_stance[i] and not stance[i]:
-                d.liftoff[i] = pd.oMf[b.foot_frame[side]].translation.copy()
+                d.liftoff[i] = pd.oMf[k_.foot_frames[i]].translation.copy()
                 d.target[i] = None
             d.was_stance[i] = stance[i]
         p_ref, v_ref, a_ref = d.ramp.reference(t)
-        v_cmd = np.array([v_ref[0], v_ref[1], 0.0])
+        vrx, vry = v_ref.tolist()
         # integral of the forward speed error: corrects the speed the footholds assume
-        fh = self.config.foothold
-        ramp_done = t >= self.command.start_delay + d.ramp.ramp_duration
-        if d.last_t is not None and ramp_done:      # no windup during start-up and ramp
-            d.speed_integral += (v_cmd[0] - vcom[0]) * (t - d.last_t)
-            lim = fh.max_speed_correction / max(fh.k_speed_integral, 1e-9)
+        # no windup during start-up and ramp
+        if d.last_t is not None and t >= k_.start_delay + d.ramp.ramp_duration:
+            d.speed_integral += (vrx - vx) * (t - d.last_t)
+            lim = k_.integral_limit
             d.speed_integral = float(min(max(d.speed_integral, -lim), lim))
         d.last_t = t
         d.last_v_ref = v_ref
-        # the command with the integral's correction on x (v_cmd's copy with [0] increased)
-        v_step = np.array((v_ref[0] + fh.k_speed_integral * d.speed_integral, v_ref[1], 0.0))
-        y_line = d.origin[1] + p_ref[1]
         yaw_ref = d.origin[2]
         # footholds of swinging feet (sole points) for their next touchdown, from the DCM
-        omega = self.omega
-        # c + ċ/ω per component (the array form's numbers)
-        dcm = np.array((com[0] + vcom[0] / omega, com[1] + vcom[1] / omega))
-        st_feet = [i for i in range(2) if stance[i]]
-        p_st = (mean_point(feet[st_feet[0]].points)[:2] if len(st_feet) == 1
-                else 0.5 * (mean_point(feet[0].points)[:2] + mean_point(feet[1].points)[:2]))
-        max_lat = self.ground.lateral_ratio * self.config.mpc.com_height
         phases = [0.0, 0.0]             # swing phase of each swinging foot at t
-        for i in range(2):
-            if stance[i]:
-                continue
-            t_td, phase = self.schedule.swing_timing(t, i)
-            phases[i] = phase
-            if d.target[i] is None or phase < 0.8:
-                if len(st_feet) == 1:
-                    xi = predict_dcm(dcm, p_st, omega, t_td)
-                    c_td = predict_com(com[:2], vcom[:2], p_st, omega, t_td)
-                else:
-                    xi, c_td = dcm, com[:2]
-                xy = foothold(self.foothold_config, dcm=xi, v_cmd=v_step,
-                              stance_duration=0.5 * self.schedule.period, omega=omega,
-                              lateral_sign=1.0 if i == LEFT else -1.0,
-                              y_error=com[1] - y_line, com_y=float(c_td[1]),
-                              max_lateral=max_lat)
-                z = self.ground.surface_height - self.config.swing.touchdown_depth
-                d.target[i] = np.array([xy[0], xy[1], z])
+        if not (stance[0] and stance[1]):
+            omega = self.omega
+            # the command with the integral's correction on x
+            v_step = (vrx + k_.k_speed_integral * d.speed_integral, vry)
+            y_line = float(d.origin[1] + p_ref[1])
+            # c + ċ/ω per component
+            dcm = (cx + vx / omega, cy + vy / omega)
+            for i in range(2):
+                if stance[i]:
+                    continue
+                t_td, phase = self.schedule.swing_timing(t, i)
+                phases[i] = phase
+                if d.target[i] is None or phase < 0.8:
+                    if stance[1 - i]:
+                        # one foot down: the pendulum over its mean contact point
+                        p_st = means[1 - i]
+                        xi = predict_dcm(dcm, p_st, omega, t_td)
+                        c_td = predict_com((cx, cy), (vx, vy), p_st, omega, t_td)
+                    else:
+                        xi, c_td = dcm, (cx, cy)
+                    xy = foothold(self.foothold_config, dcm=xi, v_cmd=v_step,
+                                  stance_duration=k_.half_period, omega=omega,
+                                  lateral_sign=1.0 if i == LEFT else -1.0,
+                                  y_error=cy - y_line, com_y=float(c_td[1]),
+                                  max_lateral=k_.max_lateral)
+                    d.target[i] = np.array((xy[0], xy[1], k_.target_z))
         if self.schedule.standing(t):
             return self._weight_shift(d, t, q, v, com, feet)
         # ---------------- MPC
@@ -337,12 +418,10 @@ class WalkingController:
             R = matrix_from_quat_xyzw(q[3:7])
             rpy = pin.rpy.matrixToRpy(R)
             omega_W = R @ v[3:6]
-            self._run_mpc(d, t, com, vcom, rpy, omega_W, feet, stance, v_cmd, yaw_ref)
-            d.next_mpc = next_tick(d.next_mpc, t, 1.0 / self.config.mpc.rate_hz, first)
+            self._run_mpc(d, t, com, vcom, rpy, omega_W, feet, stance, vrx, yaw_ref)
+            d.next_mpc = next_tick(d.next_mpc, t, k_.mpc_period, first)
         plan = d.plan
-        dt = self.config.mpc.dt
-        N = self.mpc.N
-        k = int(min(max((t - plan.t) // dt, 0), N - 1))
+        dt, N = k_.dt, k_.N
         forces = self._force_reference(plan, t, stance)
         # CoM reference: the MPC prediction at t (linear in time inside the step)
         s = min(max((t - plan.t) / dt, 0.0), float(N))
@@ -354,10 +433,10 @@ class WalkingController:
         com_ref = np.array((x3 + lead * x9, x4 + lead * x10, x5 + lead * x11))
         com_vel_ref = xs[9:12]
         f_tot = np.add.reduce(forces, axis=(0, 1))     # forces.sum(axis=(0, 1))
-        mass, g_vec = self._mass_gravity
-        com_acc = f_tot / mass + g_vec
-        sink_accel = np.zeros(2)
-        if self.ground.granular and N >= 3:
+        com_acc = f_tot / k_.mass + k_.gravity
+        granular = self.ground.granular
+        if granular and N >= 3:
+            k = int(min(max((t - plan.t) // dt, 0), N - 1))
             k1, k2 = min(k + 1, N - 1), min(k + 2, N - 1)
             # per foot: (z[k2] − 2 z[k1] + z[k]) / dt², the array form's numbers
             (a0, a1), (b0, b1), (c0, c1) = (plan.sinkage[k2].tolist(),
@@ -365,21 +444,25 @@ class WalkingController:
                                             plan.sinkage[k].tolist())
             dt2 = dt ** 2
             sink_accel = np.array(((a0 - 2.0 * b0 + c0) / dt2, (a1 - 2.0 * b1 + c1) / dt2))
-        # swing references (foot-frame origin = sole point + R up)
-        Rarc = b.config.foot.radius
-        sp, sv, sa = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3))
+        else:
+            sink_accel = np.zeros(2)
+        # swing references (foot-frame origin = sole point + R up), rows of Python floats
+        # made into arrays once
+        rows = [[_ZERO3, _ZERO3], [_ZERO3, _ZERO3], [_ZERO3, _ZERO3]]
         for i in range(2):
             if stance[i] or d.liftoff[i] is None:
                 continue
-            goal = d.target[i] + np.array([0.0, 0.0, Rarc])
-            sp[i], sv[i], sa[i] = cycloid(d.liftoff[i], goal, self.config.swing.height,
-                                          phases[i],
-                                          self.schedule.swing_duration)
+            gx, gy, gz = d.target[i].tolist()
+            rows[0][i], rows[1][i], rows[2][i] = cycloid_components(
+                d.liftoff[i].tolist(), (gx, gy, gz + k_.sole_radius), k_.swing_height,
+                phases[i], k_.swing_duration)
         ref = WBCReference(com=com_ref, com_vel=com_vel_ref, com_acc=com_acc,
-                           R_trunk=d.trunk_heading(), omega=np.zeros(3), stance=stance,
-                           forces=forces, swing_pos=sp, swing_vel=sv, swing_acc=sa,
+                           R_trunk=d.trunk_heading(), omega=_NO_TURN, stance=stance,
+                           forces=forces, swing_pos=np.array(rows[0]),
+                           swing_vel=np.array(rows[1]), swing_acc=np.array(rows[2]),
                            sink_accel=sink_accel,
-                           force_cap=self._force_cap_now(feet) if self.ground.granular else None)
+                           force_cap=(self._force_cap_now((means[0][2], means[1][2]))
+                                      if granular else None))
         t_wbc = time.perf_counter()
         tau = self.wbc.solve(d.wbc, q, v, ref, feet)
         d.records.append(TickRecord(t, "wbc", d.wbc.last_status.value, d.wbc.last_ms,
@@ -406,8 +489,9 @@ class WalkingController:
         k = min(max(math.floor(s), 0), n - 1)
         want = [bool(stance[0]), bool(stance[1])]
         near = k - 1 if s - k < 0.5 else k + 1
+        contacts = plan.contacts
         for j in (k, near, 2 * k - near):
-            if 0 <= j < n and plan.contacts[j].tolist() == want:
+            if 0 <= j < n and contacts[j].tolist() == want:
                 return plan.forces[j].copy()
         return nominal_forces(stance, self.biped.weight, plan.forces.shape[2])
 
@@ -448,14 +532,14 @@ class WalkingController:
         d.last_tau = tau
         return tau
 
-    def _run_mpc(self, d, t, com, vcom, rpy, omega_W, feet, stance, v_cmd, yaw_ref):
+    def _run_mpc(self, d, t, com, vcom, rpy, omega_W, feet, stance, v_x, yaw_ref):
         """One MPC tick: the horizon's inputs (:func:`~granular_mpc.control.horizon.plan_horizon`),
         then the solve; the plan goes to ``d.plan``."""
         t0 = time.perf_counter()
         x0 = np.concatenate([rpy, com, omega_W, vcom])
         x0[2] = yaw_ref + (x0[2] - yaw_ref + math.pi) % (2 * math.pi) - math.pi
         hz = plan_horizon(self._horizon, self.schedule, self.ground, t=t, stance=stance,
-                          feet=feet, targets=d.target, v_x=v_cmd[0], yaw=yaw_ref, com=com,
+                          feet=feet, targets=d.target, v_x=v_x, yaw=yaw_ref, com=com,
                           vcom=vcom)
         plan = self.mpc.solve(d.mpc, t=t, x0=x0, x_ref=hz.x_ref, contacts=hz.contacts,
                               points=hz.points, nominal_load=hz.load, capacity=hz.capacity)

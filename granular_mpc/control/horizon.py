@@ -31,7 +31,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import MPCConfig
-from ..rotations import rot_z
 from .contact_model import GroundModel
 from .gait import GaitSchedule
 from .wbc import FootPoints
@@ -50,6 +49,18 @@ def sole_depth(surface_height: float, points: np.ndarray) -> float:
     return float(surface_height - np.add.reduce(points[:, 2], None) / len(points))
 
 
+def _mean_row(rows: list) -> tuple[float, float, float]:
+    """Mean of (x, y, z) rows of Python floats: :func:`mean_point`'s numbers (the rows
+    summed in order, divided by their number)."""
+    sx = sy = sz = 0.0
+    for x, y, z in rows:
+        sx += x
+        sy += y
+        sz += z
+    n = len(rows)
+    return sx / n, sy / n, sz / n
+
+
 @dataclass(frozen=True)
 class HorizonConstants:
     """What the horizon set-up needs at every tick but computes once (N steps of ``dt``
@@ -65,7 +76,9 @@ class HorizonConstants:
         loads: the weight each foot carries with 0, 1, 2 feet down, ``mg / max(n, 1)`` [N].
         sinkages: the depth ``Z`` each of ``loads`` settles a foot at [m] (0 on rigid).
         slice_rows: the sole slices' offsets as rows ``(0, y, 0)`` (n_points, 3) [m, foot].
+        slice_ys: their y as Python floats [m].
         x_ref_template: the state reference with the CoM height set (N, 12).
+        com_z: that CoM height [m, W].
         omega: √(g/h) [1/s]; cosh, sinh: of ω·dt (the pendulum's step).
     """
 
@@ -78,7 +91,9 @@ class HorizonConstants:
     loads: tuple[float, float, float]
     sinkages: tuple[float, float, float]
     slice_rows: np.ndarray
+    slice_ys: list
     x_ref_template: np.ndarray
+    com_z: float
     omega: float
     cosh: float
     sinh: float
@@ -101,7 +116,9 @@ class HorizonConstants:
                    sink_list=[config.max_sink_rate * (k + 1) * dt for k in range(horizon)],
                    loads=loads, sinkages=tuple(ground.sinkage(f) for f in loads),
                    slice_rows=np.array([[0.0, y, 0.0] for y in slice_offsets]),
-                   x_ref_template=x_ref, omega=omega,
+                   slice_ys=[float(y) for y in slice_offsets],
+                   x_ref_template=x_ref, com_z=float(x_ref[0, 5]) if horizon else 0.0,
+                   omega=omega,
                    cosh=math.cosh(omega * dt), sinh=math.sinh(omega * dt))
 
 
@@ -162,39 +179,52 @@ def plan_horizon(hz: HorizonConstants, schedule: GaitSchedule, ground: GroundMod
         # mg / max(n, 1) on each foot down [N]
         load.append((hz.loads[n] if c[0] else 0.0, hz.loads[n] if c[1] else 0.0))
     granular = ground.granular
-    now = ([sole_depth(ground.surface_height, feet[0].points),
-            sole_depth(ground.surface_height, feet[1].points)] if granular else [0.0, 0.0])
-    table = [np.zeros_like(hz.slice_rows)]          # the groups' points (n_points, 3)
+    h = ground.surface_height
+    rows = (feet[0].points.tolist(), feet[1].points.tolist())   # per foot (x, y, z) rows
+    n_pts = len(rows[0])
+    # each foot's mean contact point (mean_point's numbers: summed in order, divided by n)
+    means = [_mean_row(fr) for fr in rows]
+    # depth now (sole_depth's numbers)
+    now = [h - means[0][2], h - means[1][2]] if granular else [0.0, 0.0]
+    zero = [(0.0, 0.0, 0.0)] * n_pts
+    table = [zero]                                  # the groups' points, rows (x, y, z)
+    centres = [(0.0, 0.0)]                          # the groups' centres (x, y)
     offsets = None                                  # the landing slices' offsets (W)
     landing: dict = {}                              # foot -> where it lands (x, y)
     for i, is_down, n in groups:
         if is_down:
             # where it stands, deeper by the sinkage still to come
-            pts = feet[i].points.copy()
-            if granular:
-                pts[:, 2] -= max(hz.sinkages[n] - now[i], 0.0)
+            drop = max(hz.sinkages[n] - now[i], 0.0) if granular else 0.0
+            pts = [(x, y, z - drop) for x, y, z in rows[i]] if drop else rows[i]
         else:
             if i not in landing:
                 # its swing target, or one stride on (twice the half-period's travel)
-                stride = np.array([v_x * hz.period * 0.5, 0.0])
-                xy = (targets[i][:2] if targets[i] is not None and not stance[i]
-                      else mean_point(feet[i].points)[:2] + 2 * stride)
-                landing[i] = xy.tolist()
+                if targets[i] is not None and not stance[i]:
+                    landing[i] = targets[i][:2].tolist()
+                else:
+                    landing[i] = [means[i][0] + 2 * (v_x * hz.period * 0.5),
+                                  means[i][1] + 2 * 0.0]
             if offsets is None:
-                offsets = (hz.slice_rows @ rot_z(yaw).T).tolist()
+                # the slices' rows (0, y, 0) rotated by the heading, ``slice_rows @
+                # rot_z(yaw).T``: each component is y times one entry of rot_z (the other
+                # products are exact zeros), so on floats: (−y sin, y cos)
+                c_yaw, s_yaw = math.cos(yaw), math.sin(yaw)
+                offsets = [(y * -s_yaw, y * c_yaw) for y in hz.slice_ys]
             x, y = landing[i]
-            z = ground.surface_height - hz.sinkages[n]
-            pts = np.array([(x + ox, y + oy, z) for ox, oy, _ in offsets])
+            z = h - hz.sinkages[n]
+            pts = [(x + ox, y + oy, z) for ox, oy in offsets]
         table.append(pts)
-    table = np.array(table)
-    points = table[np.array(where)]                 # (N, 2, n_points, 3)
-    # each group's centre (x, y): mean_point of its rows, all groups in one reduction
-    centres = (np.add.reduce(table[:, :, :2], axis=1) / table.shape[1]).tolist()
-    # the inverted pendulum rolled out over the supports (the module docstring)
+        # its centre (x, y): mean_point's numbers
+        centres.append(_mean_row(pts)[:2])
+    # (N, 2, n_points, 3): the groups' table as one array, indexed by the steps' groups
+    points = np.array(table)[np.array(where)]
+    # the inverted pendulum rolled out over the supports (the module docstring), written
+    # straight into the state reference's rows (yaw, CoM height set; the rest zero)
     omega, ch, sh, dt = hz.omega, hz.cosh, hz.sinh, hz.dt
     px, py = float(com[0]), float(com[1])
     vx, vy = float(vcom[0]), float(vcom[1])
-    roll = []
+    yaw, zc = float(yaw), hz.com_z
+    x_rows = []
     for left, right in where:
         if left or right:
             if left and right:
@@ -207,27 +237,21 @@ def plan_horizon(hz: HorizonConstants, schedule: GaitSchedule, ground: GroundMod
                               rx * omega * sh + vx * ch, ry * omega * sh + vy * ch)
         else:
             px, py = px + vx * dt, py + vy * dt
-        roll.append((px, py, vx, vy))
-    x_ref = hz.x_ref_template.copy()                # the CoM height already set
-    x_ref[:, 2] = yaw
-    x_ref[:, [3, 4, 9, 10]] = roll
+        x_rows.append((0.0, 0.0, yaw, px, py, zc, 0.0, 0.0, 0.0, vx, vy, 0.0))
+    x_ref = np.array(x_rows)
     capacity = None
     if granular:
-        # depth per step and foot down at the step's end: from the present depth (stays
-        # down) or from the surface at touchdown (lands)
+        # depth per step and foot at the step's end: from the present depth (stays down)
+        # or from the surface at touchdown (lands); 0 for a foot off (capacity 0 there)
         rate = hz.max_sink_rate
-        kk, ii, depths = [], [], []
+        depths = []
         for k, (c, row_down) in enumerate(zip(contacts, downs)):
-            for i in range(2):
-                if c[i]:
-                    kk.append(k)
-                    ii.append(i)
-                    depths.append(now[i] + hz.sink_list[k] if row_down[i]
-                                  else rate * max(hz.end_list[k] - touchdown[i], 0.0))
-        capacity = np.zeros((len(where), 2))
-        if depths:
-            # one interpolation for all (ground.capacity's numbers point by point)
-            capacity[kk, ii] = ground.capacities(depths)
+            for i in (0, 1):
+                depths.append((now[i] + hz.sink_list[k] if row_down[i]
+                               else rate * max(hz.end_list[k] - touchdown[i], 0.0))
+                              if c[i] else 0.0)
+        # one interpolation for all (ground.capacity's numbers point by point)
+        capacity = ground.capacities(depths).reshape(len(where), 2)
     return MPCHorizon(x_ref=x_ref, contacts=np.array(contacts), points=points,
                       load=np.array(load), capacity=capacity)
 
