@@ -152,9 +152,9 @@ def test_mu_in_reset_solves_a_warm_sequence_like_cold_solves():
 
 
 def test_qp_settings_are_chosen_by_the_config(sand):
-    """``controller.mpc.qp`` reaches the MPC: ``newton`` (the default) keeps forces in
-    newtons, ``scaled`` puts them in units of m g; an unknown name is one clear error."""
-    assert MPCConfig().qp == "newton"
+    """``controller.mpc.qp`` reaches the MPC: ``scaled`` (the default) puts forces in units
+    of m g, ``newton`` keeps them in newtons; an unknown name is one clear error."""
+    assert MPCConfig().qp == "scaled"
     assert make(sand, qp="newton").force_unit == 1.0
     assert make(sand, qp="newton").qp.mu_in_reset is None
     scaled = make(sand, qp="scaled")

@@ -60,7 +60,7 @@ class MPCConfig(StrictModel):
     friction: PositiveFloat = Field(0.6, description="Friction coefficient of the rigid-ground model [-].")
     max_normal_force: PositiveFloat = Field(300.0, description="Upper bound on the normal force per foot [N].")
     com_height: PositiveFloat = Field(0.41, description="Desired CoM height above the undisturbed surface [m].")
-    qp: Literal["newton", "scaled"] = Field("newton", description="The QP's numerics: 'newton' (forces in N; ProxSuite's tolerance fixes them only to ~10 N, every documented result uses it) or 'scaled' (forces in units of m g, primal-dual backend, mu_in restarted each solve: the optimum to ~0.003 N and about half the solve time; docs/speed.md 'The MPC tick').")
+    qp: Literal["newton", "scaled", "daqp"] = Field("scaled", description="The QP's numerics (control/mpc.py QP_SETTINGS): 'scaled' (the default since session 20: forces in units of m g, ProxSuite's primal-dual LDLT backend, mu_in restarted each solve, eps_abs 1e-5: the optimum to ≈ 0.001 N, worst ≈ 0.01 N), 'newton' (forces in N, ProxSuite's automatic backend, eps_abs 1e-4: stops up to ≈ 10–25 N from the optimum; the default before session 20, which the figures marked as such in docs/results.md used) or 'daqp' (the scaled QP solved by DAQP's dual active set instead of ProxSuite, exact to round-off, about half the solve time; opt-in). docs/speed.md 'The MPC tick'.")
 
 
 class WBCConfig(StrictModel):
@@ -79,8 +79,8 @@ class WBCConfig(StrictModel):
     kp_com: NonNegFloat = 100.0
     kd_com: NonNegFloat = 20.0
     solver: Literal["proxsuite", "daqp"] = Field(
-        "proxsuite",
-        description="QP solver of the WBC: 'proxsuite' (proximal augmented Lagrangian, warm started, tolerance 1e-5; ≈ 0.14 ms per solve in the closed loop) or 'daqp' (dual active-set, exact to round-off, hot started from the previous active set, reading the QP where the assembly writes it; ≈ 0.045 ms per solve, WBC tick 0.23 → 0.13 ms). Same QP; solutions equal within ProxSuite's tolerance (docs/speed.md, 'The WBC's solver').")
+        "daqp",
+        description="QP solver of the WBC: 'daqp' (the default since session 20) or 'proxsuite' (the default before; proximal augmented Lagrangian, warm started, tolerance 1e-5; ≈ 0.14 ms per solve in the closed loop) or 'daqp' (dual active-set, exact to round-off, hot started from the previous active set, reading the QP where the assembly writes it; ≈ 0.045 ms per solve, WBC tick 0.23 → 0.13 ms). Same QP; solutions equal within ProxSuite's tolerance (docs/speed.md, 'The WBC's solver').")
 
 
 class ControllerConfig(StrictModel):

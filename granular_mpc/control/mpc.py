@@ -78,20 +78,18 @@ class QPNumerics:
     eps_primal_inf: float | None
 
 
-#: The MPC QP's numerics by name. ``newton`` (the default, every documented result):
-#: forces in newtons, ProxSuite's ``automatic`` backend (the primal LDLT for n_in = 2 n),
-#: μ_in kept from solve to solve. H's smallest eigenvalue is then the force weight, 1e-5,
-#: so eps_abs = 1e-4 fixes the forces only to ≈ 10 N (measured: warm-started plans land
-#: 4.6 N median, 16 N worst from the QP's optimum), and μ_in shrinks 0.1 → 1e-8 over ≈ 40
-#: ticks (the 1000-iteration solves of the p99). ``scaled`` fixes both; its eps_abs 1e-5
-#: (1e-4 before session 20: measured ≈ 0.003 N median, 11.7 N worst from the optimum; at
-#: 1e-5 0.0085 N worst, solves ≈ 2 % longer); it plans different forces, so it is opt-in
-#: until the documented results are re-measured with it (docs/speed.md, "The MPC tick
-#: (issue 12)").
-#: ``daqp`` (opt-in, proposed in session 20): the ``scaled`` QP solved exactly by DAQP —
-#: measured on 60 recorded sand-walk ticks: solve 0.235 ms median against ProxSuite's
-#: 0.47–0.53 ms, forces within 0.0082 N of the ``scaled`` plan's (docs/speed.md, "WBC
-#: call and MPC read-out, round 2").
+#: The MPC QP's numerics by name (``controller.mpc.qp``). ``scaled`` (the default since
+#: session 20): forces in units of m g, ProxSuite's primal-dual LDLT backend, μ_in restarted
+#: at 0.1 each solve, eps_abs 1e-5 — plans within ≈ 0.001 N (median), 0.009 N (worst) of
+#: the QP's optimum. ``newton`` (the default before session 20, which the figures marked as
+#: such in docs/results.md used): forces in newtons, ProxSuite's ``automatic`` backend (the
+#: primal LDLT for n_in = 2 n), μ_in kept from solve to solve; H's smallest eigenvalue is
+#: then the force weight, 1e-5, so eps_abs = 1e-4 fixes the forces only to ≈ 10 N
+#: (measured: 4.6 N median, 16 N worst from the optimum), and μ_in shrinks 0.1 → 1e-8 over
+#: ≈ 40 ticks (the 1000-iteration solves of its p99). ``daqp`` (opt-in): the ``scaled`` QP
+#: solved exactly by DAQP's dual active set instead of ProxSuite — solve 0.235 ms median
+#: against ProxSuite's 0.47–0.53 ms on 60 recorded sand-walk ticks, forces within 0.0082 N
+#: of the ``scaled`` plan's (docs/speed.md, "WBC call and MPC read-out, round 2").
 QP_SETTINGS: dict[str, QPNumerics] = {
     "newton": QPNumerics("automatic", False, None, 1e-4, None),
     "scaled": QPNumerics("primal_dual_ldlt", True, 0.1, 1e-5, 1e-6),
