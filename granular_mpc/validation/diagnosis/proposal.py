@@ -2,7 +2,8 @@
 
 From the force equation error on the sinking samples (:mod:`.features`: measured foot
 force − the calibrated model's closed-form force at the measured state), a sparse model
-of the missing force is fitted per axis on the library of physically named features
+of the missing force is fitted per axis, first on the axis's physical velocity laws
+alone (:data:`LAW_FEATURES`, :func:`law_fit`), else on the library of physically named features
 (:mod:`.sparse`: STLSQ, threshold by trial-grouped cross-validation, stability selection
 over resampled stances). The selected features become a terrain-force effect written as
 a readable effect file in the plugin format (:func:`effect_source`), with units, the
@@ -21,12 +22,12 @@ from typing import Mapping
 import numpy as np
 
 from ..dataformat import load_dataset
-from .features import AXES, FEATURES, feature, force_samples
+from .features import AXES, FEATURES, ForceSamples, feature, feature_names, force_samples
 from .joint_proposal import joint_effect_names, joint_effect_source, propose_joint_terms
 from .problem import Problem
 from .proposal_records import AxisFit, Proposal, ProposedTerm, change_text
 from .result import Verdict
-from .sparse import sparse_fit
+from .sparse import SparseFit, sparse_fit
 
 #: the proposed effect's name and its file in the diagnosis folder
 PROPOSED_EFFECT = "proposed_force"
@@ -46,6 +47,22 @@ MIN_PROPOSAL_REDUCTION = 0.15
 #: out-of-library terrain forms explain z 8.8–16 N (vertical damping, hard layer),
 #: h 10.0–11.5 N (quadratic shear drag, sole Coulomb friction)
 MIN_EXPLAINED_FORCE = {"z": 5.0, "h": 9.5}
+#: the physical velocity laws tried first on each axis, alone (ζ the only other column):
+#: linear and quadratic damping of the sinking, and viscous, Coulomb and quadratic drag
+#: along the heading. All are dissipative, so a coefficient must oppose the motion (≤ 0);
+#: one of the wrong sign is dropped and the rest refitted. Fitted beside the whole library
+#: instead, the law shared its force with the null pattern's features (depth, depth²,
+#: time in stance: collinear with the sinking rate), and those were what the feedback run
+#: then refitted (docs/validation.md §3.6)
+LAW_FEATURES = {"z": ("v_z", "v_z_abs_v_z"), "h": ("v_h", "sign_v_h", "v_h_abs_v_h")}
+#: ... proposed when they pass :func:`axis_passes` with these least explained forces [N].
+#: Set on null data (sand_walk, 3 trials × 7 stances, noise 1, the model's plant at seeds
+#: 201, 202 and φ_s 33°, layer 4 cm, contact stiffness 1e5 at seed 201): the laws explain
+#: z ≤ 2.3 N, h 3.6–4.5 N (a viscous −10 N·s/m per patch: the closed form's forward
+#: pattern); the out-of-library forms of ``bench/out_of_library.py`` at seed 1: vertical
+#: damping z 8.2–8.5 N, quadratic shear drag h 8.1–8.8 N, sole Coulomb offset h 7.1 N.
+#: Held out (seeds 203–205; the three mismatches at seed 202): z ≤ 2.2 N, h 3.8–5.1 N
+MIN_LAW_FORCE = {"z": 5.0, "h": 6.0}
 #: fewest sinking samples a proposal is fitted on
 MIN_SAMPLES = 50
 #: a parameter's bounds in the effect file: this many times the proposed value
@@ -82,14 +99,52 @@ def explained_rms(rms_before: float, rms_after: float) -> float:
 
 
 def axis_passes(heldout_reduction: float, heldout_reduction_selected: float,
-                rms_before: float, rms_after: float, axis: str) -> bool:
+                rms_before: float, rms_after: float, axis: str,
+                min_force: Mapping[str, float] = MIN_EXPLAINED_FORCE) -> bool:
     """The evidence rule of a force axis: the stable refit removes ≥
     :data:`MIN_PROPOSAL_REDUCTION` of the held-out equation error, the per-fold selection
     half of that, **and** the force explained is ≥ :data:`MIN_EXPLAINED_FORCE` [N] of the
     axis (above what data without any missing force explain)."""
     return bool(heldout_reduction_selected >= MIN_PROPOSAL_REDUCTION
                 and heldout_reduction >= 0.5 * MIN_PROPOSAL_REDUCTION
-                and explained_rms(rms_before, rms_after) >= MIN_EXPLAINED_FORCE[axis])
+                and explained_rms(rms_before, rms_after) >= min_force[axis])
+
+
+def law_fit(fs: ForceSamples, axis: str, *, seed: int = 0) -> SparseFit | None:
+    """The sparse fit of one axis on its physical laws alone (:data:`LAW_FEATURES`, ζ
+    unpenalised), coefficients of the wrong physical sign (> 0) dropped and the rest
+    refitted; arrays over all of :data:`FEATURES` (0 / unselected outside the laws).
+
+    Args:
+        fs: the equation-error samples.
+        axis: ``z`` or ``h``.
+        seed: seed of the stability resamples.
+
+    Returns:
+        The fit, or None when no law is left.
+    """
+    idx = [feature_names().index(n) for n in LAW_FEATURES[axis]]
+    while idx:
+        fit = sparse_fit(fs.features[:, idx], fs.nuisance[axis][:, None], fs.target[axis],
+                         fs.trial, fs.window, seed=seed)
+        wrong = {i for j, i in enumerate(idx) if fit.selected[j] and fit.coef[j] > 0}
+        if not wrong:
+            return _on_all_features(fit, np.array(idx))
+        idx = [i for i in idx if i not in wrong]
+    return None
+
+
+def _on_all_features(fit: SparseFit, idx: np.ndarray) -> SparseFit:
+    """A fit on the columns ``idx`` of :data:`FEATURES` spread over all of them."""
+    F = len(FEATURES)
+
+    def spread(v, fill):
+        out = np.full(F, fill, dtype=np.asarray(v).dtype)
+        out[idx] = v
+        return out
+
+    return replace(fit, coef=spread(fit.coef, 0.0), frequency=spread(fit.frequency, 0.0),
+                   selected=spread(fit.selected, False), stderr=spread(fit.stderr, np.nan))
 
 
 def _force_proposal(problem: Problem, theta: Mapping[str, float], *, seed: int = 0) -> Proposal:
@@ -104,13 +159,19 @@ def _force_proposal(problem: Problem, theta: Mapping[str, float], *, seed: int =
     axes: list[AxisFit] = []
     hidden: list[str] = []
     for ax in AXES:
-        fit = sparse_fit(fs.features, fs.nuisance[ax][:, None], fs.target[ax], fs.trial,
-                         fs.window, seed=seed)
-        ok = axis_passes(fit.heldout_reduction, fit.heldout_reduction_selected,
-                         fit.rmse_before, fit.rmse_after, ax) and any(
-            FEATURES[k].expressible for k in np.flatnonzero(fit.selected))
+        # the physical laws first; the whole library only when no law passes
+        fit, stage = law_fit(fs, ax, seed=seed), "law"
+        ok = fit is not None and bool(fit.selected.any()) and axis_passes(
+            fit.heldout_reduction, fit.heldout_reduction_selected, fit.rmse_before,
+            fit.rmse_after, ax, MIN_LAW_FORCE)
+        if not ok:
+            fit, stage = sparse_fit(fs.features, fs.nuisance[ax][:, None], fs.target[ax],
+                                    fs.trial, fs.window, seed=seed), "library"
+            ok = axis_passes(fit.heldout_reduction, fit.heldout_reduction_selected,
+                             fit.rmse_before, fit.rmse_after, ax) and any(
+                FEATURES[k].expressible for k in np.flatnonzero(fit.selected))
         axes.append(AxisFit(ax, fit.heldout_reduction, fit.heldout_reduction_selected,
-                            fit.rmse_before, fit.rmse_after, fit.threshold, bool(ok)))
+                            fit.rmse_before, fit.rmse_after, fit.threshold, bool(ok), stage))
         if not ok:
             continue
         for k in np.flatnonzero(fit.selected):
@@ -273,5 +334,5 @@ def pointed_proposal(verdict: Verdict, best_candidate: str, p: Proposal | None,
 
 __all__ = ["proposed_effects", "pointed_proposal", "POINTING_VERDICTS", "propose_terms",
            "effect_source", "force_effect_source", "effect_sources", "write_proposal",
-           "proposal_sentence", "axis_passes", "explained_rms", "PROPOSED_EFFECT",
+           "proposal_sentence", "axis_passes", "law_fit", "LAW_FEATURES", "MIN_LAW_FORCE", "explained_rms", "PROPOSED_EFFECT",
            "PROPOSAL_FILE", "MIN_PROPOSAL_REDUCTION", "MIN_EXPLAINED_FORCE"]

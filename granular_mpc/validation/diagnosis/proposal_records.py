@@ -53,6 +53,8 @@ class AxisFit(Record):
         rms_before, rms_after: in-sample RMS equation error [N] (ζ refitted; with the terms).
         threshold: the STLSQ threshold chosen by cross-validation (standardised).
         proposed: whether this axis contributes terms.
+        stage: ``law`` (the physical velocity laws alone, :data:`~.proposal.LAW_FEATURES`)
+            or ``library`` (the whole feature library).
     """
 
     axis: str
@@ -62,6 +64,7 @@ class AxisFit(Record):
     rms_after: float
     threshold: float
     proposed: bool
+    stage: str = "library"
 
     @property
     def explained_rms(self) -> float:
