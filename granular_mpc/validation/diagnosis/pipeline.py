@@ -34,7 +34,7 @@ from .residuals import compute_residuals, replay_rmse
 from .result import (CalibrationReport, Diagnosis, DesignSummary, LocalizationReport,
                      NEffFactor, Recommended)
 from .screen import screen, screening_design
-from .strength import add_strength_sensitivity, strength_model
+from .strength import add_strength_sensitivity, strength_model, twin_suspects
 from .verdict import VerdictInputs, best_candidate_statement, decide
 
 
@@ -113,10 +113,16 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
         warns = tuple(warns) + coverage.warnings
         timing["replays"] = _time.perf_counter() - t0
         t0 = _time.perf_counter()
-        # φ_s refined by replays, the candidates replayed there: tested against (strength.py)
-        strength = strength_model(problem, cands, cal, res, pool, seed=seed)
         sd = screening_design(problem, cands, cal.nuisance, res, seed=seed,
-                              strength=cal.strength, strength_model=strength)
+                              strength=cal.strength)
+        # φ_s refined by replays, the candidates that could pass replayed there: tested
+        # against (strength.py)
+        suspects = twin_suspects(sd.regression, sd.base_keys, cands.keys)
+        if suspects:
+            strength = strength_model(problem, cands.without(
+                [n for n in cands.keys if n not in suspects]), cal, res, pool, seed=seed)
+            if strength is not None:
+                sd = replace(sd, strength_model=strength)
         timing["design"] = _time.perf_counter() - t0
         t0 = _time.perf_counter()
         scr = screen(problem, cands, sd, n_boot=n_boot, seed=seed, max_effects=max_effects)
