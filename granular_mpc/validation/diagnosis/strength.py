@@ -137,6 +137,7 @@ def strength_model(problem: Problem, candidates: CandidateSet, cal: CalibrationS
         fixed = {k: v for k, v in th.items() if k != col.param}
         return nuisance_columns(fixed) + (replace(col, neutral=th[col.param]),)
 
+    last_step = 0.0
     for _ in range(iterations):
         cols = columns(theta)
         bounds = {c.key: c.bounds for c in cols}
@@ -145,9 +146,16 @@ def strength_model(problem: Problem, candidates: CandidateSet, cal: CalibrationS
         step = dict(zip(base_keys + [col.key], (float(b) for b in beta)))
         if abs(step[col.key]) <= STRENGTH_TOLERANCE * col.step:
             break
+        # a step back across the previous iterate brackets the strength the data ask
+        # for: take the middle of the bracket and stop (the steps would oscillate)
+        reverse = step[col.key] * last_step < 0.0
+        last_step = step[col.key]
         for c in [c for c in cols if c.param in moving]:
-            theta[c.param] = min(max(c.neutral + step[c.key], c.lower), c.upper)
+            theta[c.param] = min(max(c.neutral + (0.5 if reverse else 1.0) * step[c.key],
+                                     c.lower), c.upper)
         path.append(theta[col.param])
+        if reverse:
+            break
         at = res.base.with_theta(**theta)
         cols = columns(theta)
         variants = {"at": at}
