@@ -341,3 +341,16 @@ def test_closed_loop_walks_with_daqp():
     assert len(wbc) >= 1000 and all(r.status == "solved" for r in wbc)
     # 2.5 s with a 0.8 s start delay, then the ramp to 0.2 m/s: measured 0.134 m
     assert state.plant.q[0] > 0.05
+
+
+def test_torque_limits_in_velocity_order_are_the_actuator_limits_permuted(biped):
+    """The WBC clips τ in the order of the actuated velocity rows (v[6:]) and returns it
+    in actuator order (``τ_v[idx_v − 6]``): its limits in v order, taken the same way,
+    are the actuator-order limits, joint by joint (by the joint's own velocity index)."""
+    lim_v = biped.torque_limits_v
+    assert lim_v.shape == (biped.model.nv - 6,)
+    np.testing.assert_array_equal(lim_v[biped.idx_v - 6], biped.torque_limits)
+    for name, iv, lim in zip(biped.joint_names, biped.idx_v, biped.torque_limits):
+        jid = biped.model.getJointId(name)
+        assert biped.model.joints[jid].idx_v == iv
+        assert lim_v[iv - 6] == lim

@@ -211,7 +211,7 @@ class WholeBodyController:
             kd_orientation=c.kd_orientation, kp_com=c.kp_com, kd_com=c.kd_com,
             swing_kp=float(self.swing_kp), swing_kd=float(self.swing_kd),
             contact_damping=float(self.contact_damping), granular=bool(self.ground.granular),
-            tau_max=tuple(np.asarray(self.biped.torque_limits, dtype=float).tolist()),
+            tau_max=tuple(self.biped.torque_limits_v.tolist()),   # v order, as τ is computed
             G=tuple(map(tuple, np.asarray(self.ground.polytope.G, dtype=float).tolist())),
             h_point=tuple(np.asarray(poly.h, dtype=float).tolist()),
             f_max_point=float(poly.f_max),
@@ -254,7 +254,7 @@ class WholeBodyController:
     def _torque_bounds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per-tick constants of :meth:`solve`: the torque bounds −τ_max, τ_max [N·m] (v
         order of the actuated joints) and the rows taking v order to actuator order."""
-        tau_max = self.biped.torque_limits
+        tau_max = self.biped.torque_limits_v          # v order, as τ is computed
         return -tau_max, tau_max, self.biped.idx_v - 6
 
     def _new_work(self, solver: ProxQPSolver | DAQPSolver | None = None) -> WBCWork:
@@ -443,7 +443,7 @@ class WholeBodyController:
         w.A[:, :nv] = M[:6]
         w.A[:, nv:] = -JT[:6]
         w.b[:] = -h[:6]
-        tau_max = b.torque_limits
+        tau_max = b.torque_limits_v          # the torque rows are in v order
         C, l, u, lb, ub = w.C, w.l, w.u, w.lb, w.ub
         C[:6, :nv] = M[6:]
         C[:6, nv:] = -JT[6:]

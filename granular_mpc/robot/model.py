@@ -116,6 +116,12 @@ class Biped:
         return np.array(self.model.effortLimit[self.idx_v], dtype=float)
 
     @cached_property
+    def torque_limits_v(self) -> np.ndarray:
+        """The same limits [N·m] in the order of the actuated joints' velocity rows
+        (v[6:]), the order the whole-body controller computes its torques in."""
+        return np.array(self.model.effortLimit[6:], dtype=float)
+
+    @cached_property
     def position_limits(self) -> tuple[np.ndarray, np.ndarray]:
         return (np.array(self.model.lowerPositionLimit[self.idx_q]),
                 np.array(self.model.upperPositionLimit[self.idx_q]))
