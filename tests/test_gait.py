@@ -164,18 +164,3 @@ def test_lip_predictions_match_numerical_integration():
     np.testing.assert_allclose(predict_com(com, vel, p, omega, dt), c, atol=2e-5)
     np.testing.assert_allclose(predict_dcm(com + vel / omega, p, omega, dt), c + v / omega,
                                atol=2e-5)
-
-
-@pytest.mark.parametrize("swing_fraction", [0.5, 0.4])
-def test_contacts_at_equals_contacts_at_every_time(swing_fraction):
-    """The vectorised plan (the MPC horizon's) is :meth:`GaitSchedule.contacts` at each
-    time, also during the weight shift and on the 2 ms grid that lands on the events."""
-    g = GaitSchedule(GaitConfig(period=0.4, swing_fraction=swing_fraction, weight_shift=0.3))
-    ts = np.concatenate([np.arange(0.0, 3.0, 0.002), 0.3 + 0.4 * np.arange(8) / 4,
-                         np.random.default_rng(1).uniform(0.0, 3.0, 500)])
-    want = np.array([g.contacts(float(t)) for t in ts])
-    got = g.contacts_at(ts)
-    assert got.shape == (len(ts), 2) and got.dtype == bool
-    np.testing.assert_array_equal(got, want)
-    assert got[ts < 0.3].all()                      # the weight shift: both feet down
-    assert not got[ts > 0.3].all()                  # stepping: some single support

@@ -18,7 +18,6 @@ import pytest
 
 from granular_mpc.config import CommandConfig, ControllerConfig, SimConfig
 from granular_mpc.control.controller import WalkingController
-from granular_mpc.control.horizon import mean_point, sole_depth
 from granular_mpc.control.mpc import CentroidalMPC
 from granular_mpc.dynamics import Plant
 from granular_mpc.robot.kinematics import balanced_stance
@@ -124,16 +123,3 @@ def test_horizon_inputs_equal_their_definitions(biped, sand, rigid, terrain_name
     if terrain_name == "sand":
         # the load transfer plans double support steps in the horizon
         assert any(both for _, both in seen)
-
-
-def test_mean_point_and_sole_depth_are_numpys_mean(biped):
-    rng = np.random.default_rng(7)
-    for n in (1, 2, 3, 5, 9):
-        pts = rng.normal(0.0, 0.1, (n, 3))
-        np.testing.assert_array_equal(mean_point(pts), pts.mean(axis=0))
-        assert sole_depth(0.02, pts) == 0.02 - pts[:, 2].mean()
-        # the batched form plan_horizon uses for its groups' centres: the same numbers
-        table = rng.normal(0.0, 0.1, (4, n, 3))
-        batched = np.add.reduce(table[:, :, :2], axis=1) / n
-        for g in range(4):
-            np.testing.assert_array_equal(batched[g], mean_point(table[g, :, :2]))

@@ -135,14 +135,6 @@ class GroundModel:
         depths, caps, _ = self._table
         return interp_scalar(float(force), caps, depths)
 
-    def sinkages(self, forces) -> np.ndarray:
-        """:meth:`sinkage` of each of ``forces`` [N] in one interpolation (the same numbers:
-        ``np.interp`` evaluates each point alone): depths [m], ``forces``' shape."""
-        f = np.asarray(forces, dtype=float)
-        if not self.granular:
-            return np.zeros(f.shape)
-        return np.where(f <= 0.0, 0.0, np.interp(f, self._caps, self._depths))
-
     def sinkage_slope(self, force: float) -> float:
         """dZ/dF [m/N] at ``force``."""
         if not self.granular:

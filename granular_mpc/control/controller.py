@@ -256,7 +256,7 @@ class WalkingController:
 
     def sole_contacts(self, pdata: pin.Data) -> tuple[tuple[FootPoints, FootPoints], tuple]:
         """:meth:`foot_points` and each foot's mean contact point ``(x, y, z)`` [m, W] as
-        Python floats (``mean_point``'s numbers: the points summed in order, divided by n).
+        Python floats (NumPy's mean: the points summed in order, divided by n).
         """
         R_arc, half, ys, frames = self._sole
         n = len(ys)
@@ -343,7 +343,7 @@ class WalkingController:
         ≈ F_cap'(z)·δ, is what makes the foot sink, so the look-ahead δ sets both how fast
         the load can be taken and the largest overshoot (load only as fast as it sinks)."""
         step = self.config.mpc.max_sink_rate * 0.5 * self.config.mpc.dt
-        # per foot on Python floats: the depth (sole_depth's numbers, from the mean height
+        # per foot on Python floats: the depth (the surface minus the mean height, from the mean height
         # ``mean_z`` [m] of its points) plus the look-ahead, and its capacity
         h, cap = self.ground.surface_height, self.ground.capacity
         return np.array((cap((h - mean_z[0]) + step), cap((h - mean_z[1]) + step)))

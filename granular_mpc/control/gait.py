@@ -78,18 +78,6 @@ class GaitSchedule:
         return ((t - start - lag[0] + 1e-9) % period - 1e-9 < stance_end,
                 (t - start - lag[1] + 1e-9) % period - 1e-9 < stance_end)
 
-    def contacts_at(self, times: np.ndarray) -> np.ndarray:
-        """:meth:`contacts` at each of ``times`` [s] (1-D), as an (n, 2) bool array
-        (left, right): the same IEEE operations element by element (``np.remainder`` is
-        Python's float ``%``), without a Python call per time (the MPC's horizon)."""
-        period, start, _, _, standing_end, stance_end, lag = self._k
-        times = np.asarray(times, dtype=float)
-        out = np.empty((len(times), 2), dtype=bool)
-        for foot in (0, 1):
-            out[:, foot] = (times - start - lag[foot] + 1e-9) % period - 1e-9 < stance_end
-        out[times < standing_end] = True
-        return out
-
     def stance_phase(self, t: float, foot: int) -> float:
         """Progress through the current stance, 0 → 1 (meaningful while in stance)."""
         if self.standing(t):

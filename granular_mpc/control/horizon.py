@@ -36,22 +36,9 @@ from .gait import GaitSchedule
 from .wbc import FootPoints
 
 
-def mean_point(points: np.ndarray) -> np.ndarray:
-    """Mean of the rows of ``points`` (n, k): ``points.mean(axis=0)``'s arithmetic (the
-    sum over rows, divided by n) without its Python wrapper."""
-    return np.add.reduce(points, axis=0) / len(points)
-
-
-def sole_depth(surface_height: float, points: np.ndarray) -> float:
-    """Depth of a foot's contact points (n, 3) [m, W] below the surface at
-    ``surface_height`` [m]: the surface minus their mean height [m]."""
-    # ndarray.sum's reduction called directly (the same sum, without its wrapper)
-    return float(surface_height - np.add.reduce(points[:, 2], None) / len(points))
-
-
 def _mean_row(rows: list) -> tuple[float, float, float]:
-    """Mean of (x, y, z) rows of Python floats: :func:`mean_point`'s numbers (the rows
-    summed in order, divided by their number)."""
+    """Mean of (x, y, z) rows of Python floats: ``np.mean(rows, axis=0)``'s numbers (the
+    rows summed in order, divided by their number)."""
     sx = sy = sz = 0.0
     for x, y, z in rows:
         sx += x
@@ -182,9 +169,9 @@ def plan_horizon(hz: HorizonConstants, schedule: GaitSchedule, ground: GroundMod
     h = ground.surface_height
     rows = (feet[0].points.tolist(), feet[1].points.tolist())   # per foot (x, y, z) rows
     n_pts = len(rows[0])
-    # each foot's mean contact point (mean_point's numbers: summed in order, divided by n)
+    # each foot's mean contact point (NumPy's mean: summed in order, divided by n)
     means = [_mean_row(fr) for fr in rows]
-    # depth now (sole_depth's numbers)
+    # depth now (the surface minus the points' mean height)
     now = [h - means[0][2], h - means[1][2]] if granular else [0.0, 0.0]
     zero = [(0.0, 0.0, 0.0)] * n_pts
     table = [zero]                                  # the groups' points, rows (x, y, z)
@@ -214,7 +201,7 @@ def plan_horizon(hz: HorizonConstants, schedule: GaitSchedule, ground: GroundMod
             z = h - hz.sinkages[n]
             pts = [(x + ox, y + oy, z) for ox, oy in offsets]
         table.append(pts)
-        # its centre (x, y): mean_point's numbers
+        # its centre (x, y): NumPy's mean of the points
         centres.append(_mean_row(pts)[:2])
     # (N, 2, n_points, 3): the groups' table as one array, indexed by the steps' groups
     points = np.array(table)[np.array(where)]
@@ -256,4 +243,4 @@ def plan_horizon(hz: HorizonConstants, schedule: GaitSchedule, ground: GroundMod
                       load=np.array(load), capacity=capacity)
 
 
-__all__ = ["HorizonConstants", "MPCHorizon", "plan_horizon", "mean_point", "sole_depth"]
+__all__ = ["HorizonConstants", "MPCHorizon", "plan_horizon"]
