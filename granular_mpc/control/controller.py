@@ -343,8 +343,8 @@ class WalkingController:
         ≈ F_cap'(z)·δ, is what makes the foot sink, so the look-ahead δ sets both how fast
         the load can be taken and the largest overshoot (load only as fast as it sinks)."""
         step = self.config.mpc.max_sink_rate * 0.5 * self.config.mpc.dt
-        # per foot on Python floats: the depth (the surface minus the mean height, from the mean height
-        # ``mean_z`` [m] of its points) plus the look-ahead, and its capacity
+        # per foot on Python floats: the depth (the surface minus the mean height ``mean_z``
+        # [m] of its points) plus the look-ahead, and its capacity
         h, cap = self.ground.surface_height, self.ground.capacity
         return np.array((cap((h - mean_z[0]) + step), cap((h - mean_z[1]) + step)))
 

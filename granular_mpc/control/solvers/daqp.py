@@ -39,7 +39,6 @@ from dataclasses import dataclass, field
 import daqp
 import numpy as np
 
-from ...exceptions import SolverError
 from .proxqp import QPProblem, QPSolution, QPStatus
 
 #: DAQP's infinity: bounds at or beyond it are free sides
@@ -173,10 +172,7 @@ class DAQPSolver:
         If ``p`` is :meth:`new_problem`'s object the stack is used as it is, otherwise
         ``p``'s arrays are copied into it (a caller may refill its buffers afterwards)."""
         if p is not self._own:      # (the solver's own problem has its size by construction)
-            if (p.H.shape[0], 0 if p.A is None else p.A.shape[0],
-                    0 if p.C is None else p.C.shape[0]) != (self.n, self.n_eq, self.n_in):
-                raise SolverError(f"QP size {(p.n, p.n_eq, p.n_in)} differs from the "
-                                  f"solver's {(self.n, self.n_eq, self.n_in)}")
+            p.check_size(self.n, self.n_eq, self.n_in)
             self._load(p)
         # equality rows: A x = b is the row's upper side; its lower side is b too
         np.copyto(self._eq_lower, self._eq_upper)

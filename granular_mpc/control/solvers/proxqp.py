@@ -121,6 +121,14 @@ class QPProblem:
     def n_in(self) -> int:
         return 0 if self.C is None else self.C.shape[0]
 
+    def check_size(self, n: int, n_eq: int, n_in: int) -> None:
+        """Raise :class:`SolverError` unless the problem has ``n`` variables, ``n_eq``
+        equality and ``n_in`` inequality rows (a solver's fixed sizes)."""
+        if (self.H.shape[0], 0 if self.A is None else self.A.shape[0],
+                0 if self.C is None else self.C.shape[0]) != (n, n_eq, n_in):
+            raise SolverError(f"QP size {(self.n, self.n_eq, self.n_in)} differs from the "
+                              f"solver's {(n, n_eq, n_in)}")
+
     def check(self) -> None:
         n = self.n
         if self.H.shape != (n, n) or self.g.shape != (n,):
@@ -247,10 +255,7 @@ class ProxQPSolver:
         The arrays of ``p`` are copied into ProxSuite's model, so a caller may refill the
         same buffers for its next problem.
         """
-        if (p.H.shape[0], 0 if p.A is None else p.A.shape[0],
-                0 if p.C is None else p.C.shape[0]) != (self.n, self.n_eq, self.n_in):
-            raise SolverError(f"QP size {(p.n, p.n_eq, p.n_in)} differs from the solver's "
-                              f"{(self.n, self.n_eq, self.n_in)}")
+        p.check_size(self.n, self.n_eq, self.n_in)
         if not _finite(p):
             return QPSolution(np.zeros(self.n), QPStatus.NON_FINITE)
         args = [p.H, p.g, p.A, p.b, p.C, p.l, p.u]
