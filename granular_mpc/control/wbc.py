@@ -314,7 +314,7 @@ class WholeBodyController:
         data.last_ms = (time.perf_counter() - t0) * 1e3
         data.solves += 1
         data.last_status = sol.status
-        if sol.status.ok and mJT_a is not None and data.assembly.torque is not None:
+        if sol.status.ok and mJT_a is not None:
             # τ = M_a q̈ + h_a − J_aᵀ f, clipped and put in actuator order by compiled code
             # (wbc_qp.torque_function: the same sums and clip as the NumPy lines below)
             a = data.assembly
@@ -326,10 +326,7 @@ class WholeBodyController:
             if data.keep_residuals:
                 res = Jt @ x[:nv] + et
                 data.extra["task_residuals"] = {k: res[r0:r1] for k, r0, r1 in names}
-            if mJT_a is not None:
-                tau = M_a @ x[:nv] + h_a + mJT_a @ x[nv:]
-            else:
-                tau = M_a @ x[:nv] + h_a - JT_a @ x[nv:]
+            tau = M_a @ x[:nv] + h_a - JT_a @ x[nv:]
         else:
             data.failures += 1
             # fall back: the previous torques if any, else gravity/force feed-forward

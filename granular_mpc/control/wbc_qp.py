@@ -334,19 +334,16 @@ def torque_function(k: AssemblyConstants, actuator_rows: tuple) -> ca.Function:
                        ["CT", "h", "x"], ["tau", "tau_act"])
 
 
-def compile_assembly(k: AssemblyConstants,
-                     actuator_rows: tuple | None = None) -> dict | None:
-    """The compiled functions by stance pair (and, with ``actuator_rows``, the torque
-    read-out :func:`torque_function` under the key ``"tau"``), or None where nothing can be
+def compile_assembly(k: AssemblyConstants, actuator_rows: tuple) -> dict | None:
+    """The compiled functions by stance pair and the torque read-out
+    :func:`torque_function` (``actuator_rows``: v order → actuator order) under the key
+    ``"tau"``, or None where nothing can be
     compiled (no C compiler, or ``GRANULAR_MPC_JIT=0``): CasADi's interpreter would be
     slower than the NumPy assembly, which then runs instead."""
     if compiler() is None or os.environ.get("GRANULAR_MPC_JIT", "1") == "0":
         return None
-    fns = [assembly_function(k, s) for s in STANCES]
-    keys = list(STANCES)
-    if actuator_rows is not None:
-        fns.append(torque_function(k, tuple(actuator_rows)))
-        keys.append("tau")
+    fns = [assembly_function(k, s) for s in STANCES] + [torque_function(k, tuple(actuator_rows))]
+    keys = list(STANCES) + ["tau"]
     lib = compile_functions("wbc_qp", fns)
     return {key: lib[f.name()] for key, f in zip(keys, fns)}
 
@@ -365,7 +362,6 @@ class AssemblyCaller:
                        for name, shape in input_shapes(nv).items()}
         self.inputs["p"] = self.p
         self._calls = {}
-        self.torque = None        # the torque read-out (:meth:`torques`), if compiled
         for stance, fn in functions.items():
             if stance == "tau":
                 continue
@@ -376,18 +372,17 @@ class AssemblyCaller:
                 buf.set_res(i, memoryview(a.reshape(-1)))
             self._calls[stance] = (buf, call)
         self.owner = None       # what bound inputs belong to (:meth:`bind_inputs`)
-        if "tau" in functions:
-            self.x = np.zeros(len(outputs[0]))                       # the QP's solution, copied in
-            self.tau = np.zeros(nv - 6)                 # v order of the actuated joints
-            self.tau_act = np.zeros(nv - 6)             # actuator order
-            buf, call = functions["tau"].buffer()
-            C = outputs[4]
-            buf.set_arg(0, memoryview(C.reshape(-1)))   # row-major C = column-major Cᵀ
-            buf.set_arg(1, memoryview(self.inputs["h"].reshape(-1, order="A")))
-            buf.set_arg(2, memoryview(self.x))
-            buf.set_res(0, memoryview(self.tau))
-            buf.set_res(1, memoryview(self.tau_act))
-            self.torque = (buf, call)
+        self.x = np.zeros(len(outputs[0]))          # the QP's solution, copied in
+        self.tau = np.zeros(nv - 6)                 # v order of the actuated joints
+        self.tau_act = np.zeros(nv - 6)             # actuator order
+        buf, call = functions["tau"].buffer()
+        C = outputs[4]
+        buf.set_arg(0, memoryview(C.reshape(-1)))   # row-major C = column-major Cᵀ
+        buf.set_arg(1, memoryview(self.inputs["h"].reshape(-1, order="A")))
+        buf.set_arg(2, memoryview(self.x))
+        buf.set_res(0, memoryview(self.tau))
+        buf.set_res(1, memoryview(self.tau_act))
+        self.torque = (buf, call)      # the torque read-out (:meth:`torques`)
 
     def torques(self, x: np.ndarray) -> None:
         """The clipped joint torques of the QP solution ``x`` [N m] into :attr:`tau` (v
@@ -421,7 +416,7 @@ class AssemblyCaller:
             for i, name in enumerate(INPUTS):
                 if name in arrays:
                     buf.set_arg(i, memoryview(arrays[name].reshape(-1, order="A")))
-        if self.torque is not None and "h" in arrays:
+        if "h" in arrays:
             self.torque[0].set_arg(1, memoryview(arrays["h"].reshape(-1, order="A")))
 
     def __call__(self, stance: tuple[bool, bool]) -> None:
