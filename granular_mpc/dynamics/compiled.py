@@ -347,8 +347,13 @@ class CompiledPlant:
         """One step of :meth:`advance_steps`: the compiled step, the time, the check, the
         contact points."""
         d._calls[False][1]()
+        d.x[:] = d._x_out
+        self._stepped(d, points)
+
+    def _stepped(self, d: "CompiledData", points: np.ndarray | None) -> None:
+        """The bookkeeping after one step whose state and aux are in ``d``: the time, the
+        step count, the divergence check, the contact points."""
         x, aux = d.x, d.aux
-        x[:] = d._x_out
         d.t += self.dt
         d.steps += 1
         # ndarray.sum's reduction called directly (the same sum, without its wrapper)
@@ -391,19 +396,10 @@ class CompiledPlant:
     def _replay(self, d: "CompiledData", xs: np.ndarray, auxs: np.ndarray,
                 points: np.ndarray | None) -> None:
         """The steps of one multi-step call taken one by one (state, time, check, points)."""
-        x, aux = d.x, d.aux
-        max_speed = self.plant.sim.max_speed
         for j in range(len(xs)):
-            x[:] = xs[j]
-            aux[:] = auxs[j]
-            d.t += self.dt
-            d.steps += 1
-            if not (aux[-1] < max_speed) or not math.isfinite(_add_reduce(x, None)):
-                self._check(d.t, x, aux)
-            if points is not None:
-                for foot in (0, 1):
-                    if aux[_EVALUATED[foot]] > 0.5:
-                        points[foot] = aux[_POINT[foot]]
+            d.x[:] = xs[j]
+            d.aux[:] = auxs[j]
+            self._stepped(d, points)
 
     def _check(self, t: float, x: np.ndarray, aux: np.ndarray) -> None:
         L, sim = self.layout, self.plant.sim
