@@ -90,3 +90,40 @@ def test_added_or_rejected_partners_are_not_refined_again():
     assert out == ["joint_friction"]
     out = [r.effect for r in contenders_for(stats, ["depth_hardening"], set(), 1, pairs)]
     assert out == ["joint_friction"]
+
+
+def test_the_acceptance_baseline_is_the_refined_model_without_the_new_term():
+    """``without_term`` replays the co-refitted calibration θ and the earlier effects at
+    their refined values, the newest term left out (its own replays are what it is judged
+    on, not the calibration's shift)."""
+    from types import SimpleNamespace
+
+    from granular_mpc.effects import effect_info
+    from granular_mpc.validation.diagnosis.refine import without_term
+
+    seen = {}
+
+    class Pool:
+        def run(self, variants):
+            seen.update(variants)
+            return {k: [{"grf_z": [1.0]}] for k in variants}
+
+    names = ("cohesion", "joint_friction", "force_sensor_bias")
+    cands = SimpleNamespace(infos={n: effect_info(n) for n in names})
+    res = SimpleNamespace(base=SimpleNamespace(theta={"zeta": 1.0, "phi_s": 0.6}))
+    fit = SimpleNamespace(theta={"zeta": 1.4},
+                          fitted={"cohesion": {"suction": 1500.0},
+                                  "joint_friction": {"coulomb": 0.1, "viscous": 0.0,
+                                                     "smoothing": 0.2},
+                                  "force_sensor_bias": {"bias_z": 6.0}})
+    out = without_term(Pool(), res, cands, fit, ["cohesion", "joint_friction"])
+    assert out == ({"grf_z": [1.0]},)
+    (v,) = seen.values()
+    assert v.theta["zeta"] == 1.4 and v.theta["phi_s"] == 0.6
+    assert v.theta["cohesion.suction"] == 1500.0
+    assert [i.name for i, _ in v.joints] == ["joint_friction"]
+    assert v.sensors == ()                 # the newest term (the sensor bias) is left out
+    # nothing added before: the co-refitted θ alone
+    without_term(Pool(), res, cands, fit, [])
+    (v,) = seen.values()
+    assert v.joints == () and v.sensors == () and "cohesion.suction" not in v.theta

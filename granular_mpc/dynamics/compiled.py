@@ -56,7 +56,7 @@ import numpy as np
 
 from ..exceptions import ConfigError, PlantDivergedError
 from ..codegen import compile_functions
-from .plant import Plant, PlantData
+from .plant import Plant, PlantData, start_state
 from .step_sx import AUX_NAMES, AUX_SLICES, StepBuilder, StepLayout, aux_foot
 
 #: step counts with a compiled "every step's result" function (``plant_steps<k>``), the
@@ -206,6 +206,22 @@ class CompiledPlant:
         d = self.plant.new_data(q0, v0)
         return self.state_from_data(d)
 
+    def initial_x(self, q0: np.ndarray, v0: np.ndarray | None = None) -> np.ndarray:
+        """``initial_state(q0, v0).x`` without building a reference plant data: the same
+        checks and quaternion normalisation as :meth:`Plant.new_data`, the contact part
+        from the fresh contact state (which does not depend on ``q0``), cached."""
+        template = self.__dict__.get("_x_template")
+        if template is None:
+            model = self.plant.biped.model
+            q_ref = np.zeros(model.nq)
+            q_ref[6] = 1.0
+            template = np.array(self.initial_state(q_ref).x)
+            template[self.layout.q] = 0.0
+            self._x_template = template
+        x = template.copy()
+        x[self.layout.q], x[self.layout.v] = start_state(self.plant.biped.model, q0, v0)
+        return x
+
     def state_from_data(self, d: PlantData) -> CompiledState:
         """The compiled state equal to the reference plant data ``d`` (for comparisons)."""
         L = self.layout
@@ -282,6 +298,11 @@ class CompiledPlant:
         """Mutable data at ``q0``, ``v0`` for :meth:`advance` (the lean per-step path)."""
         return CompiledData(self, self.initial_state(q0, v0))
 
+    def reset_data(self, d: "CompiledData", q0: np.ndarray, v0: np.ndarray | None = None) -> None:
+        """Put ``d`` back where :meth:`new_data` ``(q0, v0)`` starts (time, state, aux,
+        held command, θ, wrench), keeping its buffers (a replay's per-window set-up)."""
+        d.reset(self.initial_x(q0, v0), self.theta)
+
     def data_from_state(self, state: CompiledState) -> "CompiledData":
         """Mutable data holding ``state`` (a copy)."""
         return CompiledData(self, state)
@@ -307,6 +328,51 @@ class CompiledPlant:
             d.steps += k
             if not (d.aux[-1] < self.plant.sim.max_speed) or not math.isfinite(d.x.sum()):
                 self._check(d.t, d.x, d.aux)
+
+    def advance_samples(self, d: "CompiledData", tau: np.ndarray, n_steps: int
+                        ) -> tuple[np.ndarray, np.ndarray, int]:
+        """Per row ``k`` of ``tau`` ((n, na) [N·m]): hold it, :meth:`advance` ``d`` by
+        ``n_steps``, keep the state and aux — the same calls and numbers, one Python loop.
+
+        Returns:
+            ``(X, A, done)``: states (n, nx) and aux (n, n_aux) after each row, NaN from
+            row ``done`` on; ``done`` < n when the plant diverged after row ``done`` (the
+            :class:`PlantDivergedError` :meth:`advance` raises there; ``d`` then holds
+            that row's state).
+        """
+        n = len(tau)
+        X = np.full((n, self.layout.nx), np.nan)
+        A = np.full((n, d.aux.size), np.nan)
+        if n_steps != self.chunk:            # the general path: advance per row
+            for k in range(n):
+                d.tau[:] = tau[k]
+                try:
+                    self.advance(d, n_steps)
+                except PlantDivergedError:
+                    return X, A, k
+                X[k], A[k] = d.x, d.aux
+            return X, A, n
+        if self.verlet and not d.started and n > 0:
+            d.call_start()
+        d.started = d.started or n > 0
+        call, x, x_out, aux, d_tau = d._calls[True][1], d.x, d._x_out, d.aux, d.tau
+        vmax, dt_call = self.plant.sim.max_speed, n_steps * self.dt
+        for k in range(n):                   # advance(d, chunk) per row, without its checks
+            d_tau[:] = tau[k]
+            call()
+            x[:] = x_out
+            d.t += dt_call
+            X[k], A[k] = x_out, aux
+            if not aux[-1] < vmax:
+                break
+        d.steps += n_steps * (k + 1) if n else 0
+        # the divergence test of advance, per row: its first failing row
+        bad = ~((A[:, -1] < vmax) & np.isfinite(X).all(axis=1))
+        if not bad.any():
+            return X, A, n
+        done = int(np.argmax(bad))
+        X[done:], A[done:] = np.nan, np.nan
+        return X, A, done
 
     def advance_steps(self, d: "CompiledData", n_steps: int,
                       points: np.ndarray | None = None) -> None:
@@ -459,6 +525,16 @@ class CompiledData:
                 if name != "plant_start":
                     buf.set_res(1, memoryview(self.aux))
             self._calls[key] = (buf, call)
+
+    def reset(self, x: np.ndarray, theta: np.ndarray) -> None:
+        """Back to a fresh data at state ``x`` with parameters ``theta`` (unstarted, time
+        0, zero aux, command and wrench; the buffers are kept)."""
+        self.t, self.steps, self.started = 0.0, 0, False
+        self.x[:] = x
+        self.aux[:] = 0.0
+        self.u[:] = 0.0
+        self.theta[:] = theta
+        self.wrench[:] = 0.0
 
     def call(self, chunk: bool) -> None:
         """One compiled call (``chunk`` steps or one), result copied into ``x``."""

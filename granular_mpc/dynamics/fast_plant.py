@@ -74,6 +74,20 @@ class FastPlant:
         """Data at configuration ``q0`` and velocity ``v0`` (as :meth:`Plant.new_data`)."""
         return FastPlantData(self, self.compiled.new_data(q0, v0))
 
+    def scratch_data(self, q0: np.ndarray, v0: np.ndarray | None = None) -> "FastPlantData":
+        """This plant's one reusable data, reset to what :meth:`new_data` ``(q0, v0)``
+        gives (the same state, command, θ and read-outs; its buffers and Pinocchio data
+        kept): for callers that finish with a data before asking for the next one (a
+        replay per window). Each call resets and returns the same object."""
+        d = self.__dict__.get("_scratch")
+        if d is None:
+            d = self._scratch = self.new_data(q0, v0)
+            return d
+        self.compiled.reset_data(d.data, q0, v0)
+        d.base_wrench = None
+        d._point[:] = 0.0
+        return d
+
     def step(self, d: "FastPlantData", tau_a: np.ndarray | None = None) -> None:
         """Advance ``d`` by one step with actuator torques ``tau_a`` [N·m] (held)."""
         if tau_a is not None:

@@ -95,16 +95,7 @@ class Plant:
 
     def new_data(self, q0: np.ndarray, v0: np.ndarray | None = None) -> "PlantData":
         """Plant data starting at configuration ``q0`` [m, quaternion, rad] and ``v0``."""
-        model = self.biped.model
-        q0 = np.asarray(q0, dtype=float)
-        if q0.shape != (model.nq,):
-            raise ConfigError(f"q0 must have {model.nq} entries, got {q0.shape}", key="q0")
-        v0 = np.zeros(model.nv) if v0 is None else np.asarray(v0, dtype=float)
-        if v0.shape != (model.nv,):
-            raise ConfigError(f"v0 must have {model.nv} entries, got {v0.shape}", key="v0")
-        q0 = q0.copy()
-        q0[3:7] /= np.linalg.norm(q0[3:7])
-        return PlantData(self, q0, v0.copy())
+        return PlantData(self, *start_state(self.biped.model, q0, v0))
 
     # ------------------------------------------------------------------ dynamics
     def forward(self, d: "PlantData", q: np.ndarray, v: np.ndarray,
@@ -285,6 +276,25 @@ class Plant:
         return float(ke), float(pe)
 
 
+def start_state(model: pin.Model, q0: np.ndarray, v0: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The start configuration and velocity of a plant run (new arrays): ``q0`` with its
+    base quaternion normalised, ``v0`` (default zero).
+
+    Raises:
+        ConfigError: ``q0`` or ``v0`` has the wrong size (nq, nv).
+    """
+    q0 = np.asarray(q0, dtype=float)
+    if q0.shape != (model.nq,):
+        raise ConfigError(f"q0 must have {model.nq} entries, got {q0.shape}", key="q0")
+    v0 = np.zeros(model.nv) if v0 is None else np.asarray(v0, dtype=float)
+    if v0.shape != (model.nv,):
+        raise ConfigError(f"v0 must have {model.nv} entries, got {v0.shape}", key="v0")
+    q0 = q0.copy()
+    q0[3:7] /= np.linalg.norm(q0[3:7])
+    return q0, v0.copy()
+
+
 class PlantData:
     """Changing part of the plant: time, state, torque, terrain contact state, buffers."""
 
@@ -400,4 +410,5 @@ def readout_offsets(nq: int, nv: int, na: int) -> dict:
     return off
 
 
-__all__ = ["Plant", "PlantData", "READOUT_FOOT_PARTS", "READOUT_PER_FOOT", "readout_offsets"]
+__all__ = ["Plant", "PlantData", "READOUT_FOOT_PARTS", "READOUT_PER_FOOT", "readout_offsets",
+           "start_state"]

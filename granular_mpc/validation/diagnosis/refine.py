@@ -13,6 +13,7 @@ from typing import Collection, Mapping, Sequence
 
 import numpy as np
 
+from ..replay.model import Variant, effect_variant
 from ..replay.pool import ReplayPool
 from .acceptance import Acceptance, judge
 from .calibration import CalibrationStage, nuisance_columns
@@ -109,6 +110,22 @@ def contenders_for(stats: Sequence[CandidateStats], selected: Sequence[str],
     return out
 
 
+def without_term(pool: ReplayPool, res: Residuals, candidates: CandidateSet,
+                 fit: GaussNewtonFit, previous: Sequence[str]) -> tuple[dict, ...]:
+    """Per-window replay outputs of a refined model without its newest term: the
+    calibration θ refined with it (``fit.theta``) and the ``previous`` effects at their
+    refined values, the term left out.
+
+    The acceptance compares this with ``fit.preds``, so that a term is credited with — and
+    judged on — what *its own* replays change: the co-refitted calibration moves other
+    channels too (a force-sensor bias refitted with ζ shifts ``grf_x`` by ~1 %), which is
+    no evidence for or against the term.
+    """
+    specs = [(candidates.infos[s], dict(fit.fitted[s])) for s in previous]
+    variant = effect_variant(specs, Variant(theta={**res.base.theta, **fit.theta}))
+    return tuple(pool.run({"without": variant})["without"])
+
+
 def _conditional_row(r: CandidateStats) -> ConditionalRow:
     return ConditionalRow(r.effect, r.heldout_error_reduction, r.heldout_error_reduction_stance,
                           r.delta_aicc, r.inclusion_probability, r.effect_size, r.significant)
@@ -169,8 +186,10 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
         tried.sort(key=lambda t: t[0])
         chosen = None
         for _, cand, fit in tried:            # by AICc; the first that passes is added
+            # the term's own replays: with and without it at the same (co-refitted) θ
+            before = without_term(pool, res, candidates, fit, selected)
             acc = judge(windows, channels, res.sigma, candidates.infos[cand.effect],
-                        fit.fitted[cand.effect], final_preds, fit.preds)
+                        fit.fitted[cand.effect], before, fit.preds)
             acceptance.append(acc)
             if acc.accepted:
                 chosen = (cand, fit)
@@ -262,4 +281,4 @@ def _refined_heldout(problem, candidates, res, scr, selected, fitted,
         REFINED_HELDOUT_NOTE)
 
 
-__all__ = ["Refinement", "refine", "contenders_for", "SECANT_BOUNDS"]
+__all__ = ["Refinement", "refine", "contenders_for", "without_term", "SECANT_BOUNDS"]
