@@ -77,3 +77,22 @@ def test_reduced_system_keeps_the_residual_outside_the_columns():
     b4, _ = zero.fit(np.arange(4), np.full(4, -np.inf), np.full(4, np.inf))
     np.testing.assert_allclose(b4[:3], full[0], rtol=1e-10)
     assert b4[3] == 0.0
+
+
+def test_repeated_fit_is_the_first_fit():
+    """A fit asked for again on the same reduced system (the bootstrap's forward selection
+    and refits) returns the first one's β and RSS bit for bit, as a new array each time;
+    other columns or bounds are fitted anew."""
+    rng = np.random.default_rng(4)
+    A = rng.standard_normal((300, 6))
+    y = A @ np.array([1.0, -2.0, 0.5, 0.0, 3.0, -1.0]) + 0.1 * rng.standard_normal(300)
+    fresh = ReducedSystem.of(A, y)
+    memo = ReducedSystem.of(A, y)
+    cols, lb, ub = np.array([0, 1, 4]), np.full(3, -np.inf), np.array([np.inf, 0.0, 2.0])
+    b1, r1 = memo.fit(cols, lb, ub)
+    b1[:] = 99.0                          # the caller's copy
+    b2, r2 = memo.fit(cols, lb, ub)
+    b0, r0 = fresh.fit(cols, lb, ub)
+    assert np.array_equal(b2, b0) and r2 == r0 and not np.any(b2 == 99.0)
+    b3, _ = memo.fit(cols, lb, np.array([np.inf, 0.0, 5.0]))
+    assert b3[2] > 2.5                    # a new bound: a new fit (β_4 ≈ 3 unbounded)

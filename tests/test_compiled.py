@@ -395,3 +395,70 @@ def test_per_foot_theta_and_joint_parameters_match_reference(biped):
                                                  v_sigma=0.02, v_down=0.1, tilt=0.003)[0]),
                 n_steps=30, q_ref=q_hold, kp=KP, kd=KD)
     assert np.abs(s0.v - s.v).max() > 1e-6
+
+
+def test_initial_x_and_reset_data_equal_a_fresh_data(sand_pair):
+    """initial_x is initial_state's x bit for bit (normalised quaternion, v0 default zero,
+    the fresh contact state); reset_data after a run in contact gives the data new_data
+    gives (state, aux, command, θ, wrench, time, started)."""
+    plant, fast = sand_pair
+    rng = np.random.default_rng(3)
+    d_ref, q_hold = _contact_state(plant, rng)
+    for q0, v0 in ((d_ref.q * 1.01, d_ref.v), (d_ref.q, None)):
+        assert np.array_equal(fast.initial_x(q0, v0), fast.initial_state(q0, v0).x)
+    with pytest.raises(ConfigError):
+        fast.initial_x(d_ref.q[:-1])
+    d = fast.data_from_state(fast.state_from_data(d_ref))
+    d.tau[:], d.wrench[:] = 1.0, 3.0
+    fast.advance(d, 12)
+    d.kp[:], d.theta[0] = 2.0, 7.0
+    fast.reset_data(d, d_ref.q, d_ref.v)
+    fresh = fast.new_data(d_ref.q, d_ref.v)
+    for name in ("x", "aux", "u", "theta", "wrench"):
+        assert np.array_equal(getattr(d, name), getattr(fresh, name)), name
+    assert (d.t, d.steps, d.started) == (fresh.t, fresh.steps, fresh.started)
+
+
+@pytest.mark.parametrize("pair", ["sand_pair", "rigid_pair"])
+def test_advance_samples_equals_advance_per_sample(pair, request):
+    """advance_samples gives bit for bit the per-row state and aux of one advance(d, chunk)
+    per torque row (the chunk path, on a stepped and on a fresh data, and the general
+    path, n_steps ≠ chunk)."""
+    plant, fast = request.getfixturevalue(pair)
+    biped = plant.biped
+    rng = np.random.default_rng(8)
+    d_ref, q_hold = _contact_state(plant, rng)
+    tau = 20.0 * rng.standard_normal((9, len(biped.idx_v)))
+    start = fast.state_from_data(d_ref)
+    for n_steps, started in ((fast.chunk, True), (3, True), (fast.chunk, False)):
+        if started:                     # stepped before
+            d1, dn = fast.data_from_state(start), fast.data_from_state(start)
+        else:                           # fresh: the Verlet start sees row 0's torque
+            d1, dn = fast.new_data(start.q, start.v), fast.new_data(start.q, start.v)
+        X, A, done = fast.advance_samples(dn, tau, n_steps)
+        assert done == len(tau)
+        for k in range(len(tau)):
+            d1.tau[:] = tau[k]
+            fast.advance(d1, n_steps)
+            assert np.array_equal(X[k], d1.x) and np.array_equal(A[k], d1.aux)
+        assert np.array_equal(dn.x, d1.x) and dn.steps == d1.steps
+        assert dn.t == pytest.approx(d1.t, abs=1e-15)
+
+
+def test_advance_samples_stops_at_the_row_where_it_diverges(rigid_pair):
+    """A free fall crossing the velocity bound after the first row: the rows before it
+    as advance gives them, NaN from that row on, done = the row where advance raises."""
+    plant, fast = rigid_pair
+    q = plant.biped.standing_configuration(1.0)
+    v = np.zeros(plant.biped.model.nv)
+    v[2] = -(plant.sim.max_speed - 25.0 * 9.81 * plant.dt)       # crosses after ≈ 25 steps
+    tau = np.zeros((6, len(plant.biped.idx_v)))
+    d1, dn = fast.new_data(q, v), fast.new_data(q, v)
+    X, A, done = fast.advance_samples(dn, tau, fast.chunk)
+    rows = 0
+    with pytest.raises(PlantDivergedError):
+        for k in range(len(tau)):
+            fast.advance(d1, fast.chunk)
+            assert np.array_equal(X[k], d1.x) and np.array_equal(A[k], d1.aux)
+            rows += 1
+    assert done == rows >= 1 and np.isnan(X[done:]).all() and np.isnan(A[done:]).all()

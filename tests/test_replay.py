@@ -344,3 +344,26 @@ def test_fitted_parameters_of_the_wrong_shape_name_the_file(tmp_path, content):
     with pytest.raises(ConfigError, match="params.json") as err:
         load_fitted(p)
     assert err.value.key == "--params"
+
+
+def test_reused_plant_data_replays_like_a_fresh_one(clean_windows):
+    """The compiled replay resets one plant data per model instead of building one per
+    window: after replays of other windows and variants (joint-effect θ, other terrain θ,
+    other feet in contact), a window's replay equals bit for bit its first replay on a
+    freshly built model (whose first replay builds a new data)."""
+    ds, rm0, ws = clean_windows
+    biped = rm0.biped
+    joint = effect_variant(resolve_effect_specs(["joint_friction"]))
+    variants = [Variant(), Variant(theta={"zeta": 0.9}), joint]
+    for w, var in zip((ws[0], ws[3], ws[-1]), variants):
+        rm = build_replay_model(biped, model_terrain("dry_sand"),
+                                sample_rate_hz=ds.meta.sample_rate_hz,
+                                terrain_effects=["cohesion"])
+        fresh = replay_granular(rm, w, var)              # the model's first data: new
+        for other in (ws[1], ws[5], w):
+            for v2 in variants[::-1]:
+                replay_granular(rm, other, v2)
+        again = replay_granular(rm, w, var)
+        assert set(again) == set(fresh)
+        for c, val in fresh.items():
+            assert np.array_equal(np.asarray(again[c]), np.asarray(val)), (w.index, c)

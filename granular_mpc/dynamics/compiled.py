@@ -56,15 +56,13 @@ import numpy as np
 
 from ..exceptions import ConfigError, PlantDivergedError
 from ..codegen import compile_functions
+from .multi_step import chunk_function, steps_function
 from .plant import Plant, PlantData, start_state
 from .step_sx import AUX_NAMES, AUX_SLICES, StepBuilder, StepLayout, aux_foot
 
 #: step counts with a compiled "every step's result" function (``plant_steps<k>``), the
 #: calls :meth:`CompiledPlant.advance_steps` makes (largest first)
 STEP_COUNTS = (8, 4, 2)
-#: a state whose entries are all below this in magnitude has a finite sum (the per-step
-#: check of :meth:`CompiledPlant.advance_steps` cannot fire; nx × 1e300 < 1.7e308)
-_BOUND = 1e300
 #: steps per compiled call in :meth:`CompiledPlant.step` (``mapaccum``)
 DEFAULT_CHUNK = 10
 
@@ -352,10 +350,11 @@ class CompiledPlant:
                     return X, A, k
                 X[k], A[k] = d.x, d.aux
             return X, A, n
+        call, x, x_out, aux, d_tau = d._calls[True][1], d.x, d._x_out, d.aux, d.tau
         if self.verlet and not d.started and n > 0:
+            d_tau[:] = tau[0]                # the start sees the first row's torque
             d.call_start()
         d.started = d.started or n > 0
-        call, x, x_out, aux, d_tau = d._calls[True][1], d.x, d._x_out, d.aux, d.tau
         vmax, dt_call = self.plant.sim.max_speed, n_steps * self.dt
         for k in range(n):                   # advance(d, chunk) per row, without its checks
             d_tau[:] = tau[k]
@@ -434,7 +433,7 @@ class CompiledPlant:
         """``k`` steps of :meth:`advance_steps` in one compiled call that returns every
         step's state and aux: the same numbers as ``k`` single steps (the same compiled
         step), the time summed step by step. The per-step check cannot fire when every
-        speed is below the bound and every state entry below ``_BOUND`` in magnitude (NaN
+        speed is below the bound and every state entry below ``BOUND`` (:mod:`.multi_step`) in magnitude (NaN
         fails both tests); otherwise the steps are replayed one by one with the per-step check, so
         the error is raised at the step (time, state, aux, contact points) where it
         happened (the tests and the contact points' last steps come with the call,
@@ -548,50 +547,6 @@ class CompiledData:
     def state(self) -> CompiledState:
         """An immutable snapshot."""
         return CompiledState(self.t, self.steps, self.x, self.started, self.layout, self.aux)
-
-
-def chunk_function(step: ca.Function, k: int) -> ca.Function:
-    """``plant_chunk(x, u, θ, w) -> (x_k, aux)``: ``k`` steps with the command held.
-
-    ``aux`` is the last step's auxiliary output with its last entry (largest |v|) the
-    maximum over the ``k`` steps.
-    """
-    X, U = ca.MX.sym("x", step.size1_in(0)), ca.MX.sym("u", step.size1_in(1))
-    T, W = ca.MX.sym("theta", step.size1_in(2)), ca.MX.sym("wrench", step.size1_in(3))
-    acc = step.mapaccum("plant_acc", k)
-    xs, aux = acc(X, ca.repmat(U, 1, k), ca.repmat(T, 1, k), ca.repmat(W, 1, k))
-    aux_out = ca.vertcat(aux[:-1, -1], ca.mmax(aux[-1, :]))
-    return ca.Function("plant_chunk", [X, U, T, W], [xs[:, -1], aux_out],
-                       ["x", "u", "theta", "wrench"], ["x_next", "aux"])
-
-
-def steps_function(step: ca.Function, k: int, max_speed: float) -> ca.Function:
-    """``plant_steps<k>(x, u, θ, w) -> (xs, auxs, info)``: ``k`` steps with the command
-    held, every step's result (the same compiled step as ``plant_step``, called ``k`` times
-    by ``mapaccum``).
-
-    Outputs: ``xs`` (nx × k) the state after each step, ``auxs`` (n_aux × k) each step's
-    auxiliary output (column j: step j), and ``info`` (3): the number of failed tests
-    ``|x_ij| < BOUND`` and ``speed_j < max_speed`` (a NaN fails them: 0 means no step's
-    state has a non-finite sum or exceeds the velocity bound; ``BOUND`` = 1e300, nx ×
-    1e300 < 1.7e308), then per foot 1 + the last step that evaluated its contact (0:
-    none) — comparisons and selections of whole numbers only, no arithmetic on the state.
-    """
-    X, U = ca.MX.sym("x", step.size1_in(0)), ca.MX.sym("u", step.size1_in(1))
-    T, W = ca.MX.sym("theta", step.size1_in(2)), ca.MX.sym("wrench", step.size1_in(3))
-    acc = step.mapaccum(f"plant_acc{k}", k)
-    xs, aux = acc(X, ca.repmat(U, 1, k), ca.repmat(T, 1, k), ca.repmat(W, 1, k))
-    failed = (ca.sum1(ca.sum2(1 - (ca.fabs(xs) < _BOUND)))
-              + ca.sum2(1 - (aux[-1, :] < max_speed)))
-    last = []
-    for foot in (0, 1):
-        ev = aux[AUX_SLICES[foot, "evaluated"].start, :]
-        j_last = ca.MX(0)
-        for j in range(k):
-            j_last = ca.if_else(ev[j] > 0.5, j + 1, j_last)
-        last.append(j_last)
-    return ca.Function(f"plant_steps{k}", [X, U, T, W], [xs, aux, ca.vertcat(failed, *last)],
-                       ["x", "u", "theta", "wrench"], ["xs", "auxs", "info"])
 
 
 class _Caller:

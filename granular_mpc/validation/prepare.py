@@ -437,25 +437,30 @@ def stance_windows(ds: Dataset, biped: Biped, *, contact_stiffness: float = 2.0e
                          refine_touchdowns=refine)
         speed = ds.commanded_speed(trial)
         phases, starts = st.phases, st.starts
+        # each column read once per trial (the windows take row ranges of them)
+        arrays = {c: df[c].to_numpy(dtype=float)
+                  for c in dict.fromkeys([*scored, *format_columns(J)])
+                  if c != STANCE and c in df.columns}
         for n_ph, ph in enumerate(phases):
             if not ph.complete or ph.n_rows < min_samples:
                 continue
             # a phase ends where the next one starts (its kinematic touchdown)
             stop = (starts[n_ph + 1] if n_ph + 1 < len(phases)
                     and phases[n_ph + 1].row_start == ph.row_stop else ph.row_stop)
-            out.append(_window(len(out), st, df, biped, data, ph._replace(trial=trial), J,
+            out.append(_window(len(out), st, arrays, biped, data, ph._replace(trial=trial), J,
                                scored, float(speed),
                                contact_stiffness, smooth_window, touchdown_depth, fs,
                                starts[n_ph], stop, st.surface_rows[n_ph]))
     return out
 
 
-def _window(index: int, st: TrialStates, df: pd.DataFrame, biped: Biped, data: pin.Data,
+def _window(index: int, st: TrialStates, arrays: dict, biped: Biped, data: pin.Data,
             ph, J: list, scored: list, speed: float, contact_stiffness: float,
             smooth_window: int, touchdown_depth: float, fs: float,
             start: int, stop: int, surface_row: int | None = None) -> StanceWindow:
     """One stance phase as a :class:`StanceWindow` (see :func:`stance_windows`), over the
-    rows [start, stop) (the phase's rows, or its kinematic touchdown to the next one's)."""
+    rows [start, stop) (the phase's rows, or its kinematic touchdown to the next one's);
+    ``arrays``: the trial's columns as float arrays (the scored and the format's)."""
     a, b = start, stop
     a_label = ph.row_start
     side = ph.side
@@ -539,7 +544,7 @@ def _window(index: int, st: TrialStates, df: pd.DataFrame, biped: Biped, data: p
     r0 = k0 + 1                           # first predicted (scored) row
     t_ph = st.time[a:b]
     t = st.time[r0:b] - st.time[a]
-    meas = {c: df[c].to_numpy(dtype=float)[r0:b] for c in scored}
+    meas = {c: arrays[c][r0:b] for c in scored}
     kin = _foot_kinematics(biped, data, st, side, r0, b)
     intr, dintr, load, _ = _stance_channels(st, biped, data, side, r0, b, surface_W,
                                             c_W[:2], smooth_window, fs)
@@ -564,8 +569,7 @@ def _window(index: int, st: TrialStates, df: pd.DataFrame, biped: Biped, data: p
         phase=100.0 * t / max(t_ph[-1] - t_ph[0], 1e-9),
         q0=q_loc, v0=v0, tau=st.tau[k0:b - 1].copy(), feet=tuple(feet), origin=origin,
         touchdown_W=np.array([c_W[0], c_W[1], surface_W]), meas=meas, features=feats,
-        columns={c: df[c].to_numpy(dtype=float)[r0:b] for c in format_columns(J)
-                 if c != STANCE and c in df.columns})
+        columns={c: arrays[c][r0:b] for c in format_columns(J) if c in arrays})
 
 
 def windows_frame(windows: Sequence[StanceWindow], values: Sequence[dict] | None = None,

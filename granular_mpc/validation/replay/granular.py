@@ -41,7 +41,7 @@ def _patch_velocity(biped: Biped, data: pin.Data, side: str, pts: np.ndarray) ->
     fid = biped.foot_frame[side]
     vel = pin.getFrameVelocity(biped.model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
     p_F = data.oMf[fid].translation
-    return np.array([vel.linear + np.cross(vel.angular, p - p_F) for p in pts])
+    return vel.linear + np.cross(vel.angular, pts - p_F)   # rows: the products one by one
 
 
 def _in_world(fi: FootInit, origin: np.ndarray) -> FootInit:
@@ -66,7 +66,8 @@ def replay_granular(model: ReplayModel, w: StanceWindow, variant: Variant) -> di
     q0[0:3] += origin                        # local frame → the world's x, y
     plant, _choice = model.replay_plant(variant)
     fast = isinstance(plant, FastPlant)
-    d = plant.new_data(q0, w.v0)
+    # the compiled plant's reusable data, reset (same start as a new one, no rebuild)
+    d = plant.scratch_data(q0, w.v0) if fast else plant.new_data(q0, w.v0)
     if fast:                                 # the variant's joint-effect parameters
         set_joint_params(plant, d, variant)
     cd = d.contact
@@ -125,20 +126,11 @@ def _run_compiled(plant: FastPlant, d, w: StanceWindow, sps: int) -> tuple:
     """:func:`_run_reference` on the compiled plant: ``sps`` steps per compiled call
     (the replay's plant is built with ``chunk = steps_per_sample``), the state and the
     auxiliary output kept per sample, the channels computed from them at the end."""
-    c, data = plant.compiled, d.data
+    c = plant.compiled
     L = c.layout
     n = w.n
-    X = np.full((n, L.nx), np.nan)
-    A = np.full((n, data.aux.size), np.nan)
-    done, diverged = n, False
-    try:
-        for k in range(n):
-            data.tau[:] = w.tau[k]
-            c.advance(data, sps)
-            X[k] = data.x
-            A[k] = data.aux
-    except PlantDivergedError:
-        done, diverged = k, True
+    X, A, done = c.advance_samples(d.data, w.tau[:n], sps)
+    diverged = done < n
     i, o = w.foot, 1 - w.foot
     flags = X[:, L.contact].reshape(n, 2, L.n_patches, L.patch_state)[:, :, :, 6].max(axis=2)
     on_i, on_o = (flags[:, i] > 0.5)[:, None], flags[:, o] > 0.5
