@@ -16,7 +16,8 @@ With ``--old-tree DIR`` (another checkout, e.g. ``git archive HEAD | tar -x -C D
 tick, this tree's config, ground model and ProxSuite wrapper) and replayed too, interleaved,
 with both settings: suffixes ``_oldtree`` (``scaled``) and ``_oldtree_newton``. Suffix
 ``_daqp``: ``controller.mpc.qp: daqp`` (the ``scaled`` QP solved by DAQP; its iterations are
-active-set changes, not ProxSuite's).
+active-set changes, not ProxSuite's). Suffix ``_rows``: ``controller.mpc.qp: scaled_rows``
+(``scaled`` without the polytope rows the others imply: the same optimum, fewer rows).
 
 Prints per setting (suffix ``_old``; no suffix = new): ``mpc_assembly_ms_median`` (building
 the QP, ``MPCPlan.build_ms``), ``mpc_solve_ms_median`` / ``_p99`` (ProxSuite's update and
@@ -169,7 +170,7 @@ def main(argv=None) -> dict:
         mpc, ticks = record_ticks(args.seconds, args.speed, args.terrain)
         load0 = os.getloadavg()[0]
         models = {"new": new_settings(mpc), "old": old_settings(mpc),
-                  "daqp": mpc.with_qp("daqp")}
+                  "daqp": mpc.with_qp("daqp"), "rows": mpc.with_qp("scaled_rows")}
         if args.old_tree:
             old = old_tree_mpc(mpc, args.old_tree)
             models.update(oldtree=new_settings(old), oldtree_newton=old_settings(old))
@@ -184,7 +185,7 @@ def main(argv=None) -> dict:
     figs = figures(runs, dist, (load0,))
     figs["mpc_ticks"] = float(len(ticks))
     units = {}
-    for sfx in ("_old", "", "_daqp", "_oldtree", "_oldtree_newton"):
+    for sfx in ("_old", "", "_daqp", "_rows", "_oldtree", "_oldtree_newton"):
         units.update({f"_ms_median{sfx}": "ms", f"_ms_p99{sfx}": "ms", f"_ms_mean{sfx}": "ms",
                       f"_n_median{sfx}": "N", f"_n_max{sfx}": "N"})
     emit(figs, args.json, units)

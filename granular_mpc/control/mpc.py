@@ -35,6 +35,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -43,6 +44,7 @@ from ..exceptions import ConfigError
 from ..rotations import rot_z, skew, skew_rows
 from .contact_model import GroundModel
 from .mpc_assembly import MPCAssemblyCaller, MPCAssemblyConstants, compile_assembly
+from .mpc_rows import PolytopeRows, mpc_polytope_rows
 from .solvers.daqp import DAQPSolver
 from .solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
 
@@ -69,6 +71,9 @@ class QPNumerics:
         eps_primal_inf: ProxSuite's primal infeasibility tolerance; the QP is feasible by
             construction (zero forces satisfy every row), so an infeasibility verdict can
             only be false. None: ProxSuite's default.
+        drop_implied_rows: leave out the polytope rows the other rows and the box imply
+            (:func:`.mpc_polytope_rows`; on dry sand the two lateral capacity rows, n_in
+            144 → 120): the same feasible set, hence the same optimum, less work per solve.
     """
 
     backend: str
@@ -76,6 +81,7 @@ class QPNumerics:
     mu_in_reset: float | None
     eps_abs: float
     eps_primal_inf: float | None
+    drop_implied_rows: bool = False
 
 
 #: The MPC QP's numerics by name (``controller.mpc.qp``). ``scaled`` (the default since
@@ -90,10 +96,14 @@ class QPNumerics:
 #: solved exactly by DAQP's dual active set instead of ProxSuite — solve 0.235 ms median
 #: against ProxSuite's 0.47–0.53 ms on 60 recorded sand-walk ticks, forces within 0.0082 N
 #: of the ``scaled`` plan's (docs/speed.md, "WBC call and MPC read-out, round 2").
+#: ``scaled_rows`` (session 21, opt-in): ``scaled`` without the polytope rows the other rows
+#: imply (``QPNumerics.drop_implied_rows``) — the same optimum, ≈ 11 % less ProxSuite time
+#: (docs/speed.md, "Session 21: MPC tick").
 QP_SETTINGS: dict[str, QPNumerics] = {
     "newton": QPNumerics("automatic", False, None, 1e-4, None),
     "scaled": QPNumerics("primal_dual_ldlt", True, 0.1, 1e-5, 1e-6),
     "daqp": QPNumerics("daqp", True, None, 1e-5, None),
+    "scaled_rows": QPNumerics("primal_dual_ldlt", True, 0.1, 1e-5, 1e-6, True),
 }
 
 
@@ -218,10 +228,20 @@ class CentroidalMPC:
     def nu(self) -> int:
         return self.max_pairs * self.nu_pair
 
+    @cached_property
+    def polytope_rows(self) -> PolytopeRows:
+        """The ground polytope's rows the QP carries (all of them, or without the implied
+        ones when ``qp.drop_implied_rows``), foot heading frame."""
+        poly = self.ground.polytope
+        if self.qp.drop_implied_rows:
+            return mpc_polytope_rows(poly, self.n_points)
+        return PolytopeRows(poly.G[poly.cone_rows], poly.G[poly.capacity_rows],
+                            poly.h[poly.capacity_rows], ())
+
     @property
     def rows_per_pair(self) -> int:
-        poly = self.ground.polytope
-        return self.n_points * len(poly.cone_rows) + len(poly.capacity_rows)
+        rows = self.polytope_rows
+        return self.n_points * rows.cone.shape[0] + rows.capacity.shape[0]
 
     @property
     def n_in(self) -> int:
@@ -259,7 +279,7 @@ class CentroidalMPC:
     def _new_work(self, solver: ProxQPSolver | DAQPSolver | None = None) -> MPCWork:
         """The work arrays; for a :class:`.DAQPSolver` the QP buffers are views of its
         stacked problem (filled here with the same initial values as the own arrays)."""
-        poly = self.ground.polytope
+        rows = self.polytope_rows
         nu, n_in = self.nu, self.n_in
         if isinstance(solver, DAQPSolver):
             qp = solver.new_problem()
@@ -274,8 +294,7 @@ class CentroidalMPC:
             q_rep=np.tile(self._q_diag(), self.N),
             inertia_inv_B=np.linalg.inv(self.inertia_B),
             steps=np.arange(1, self.N + 1, dtype=float)[:, None],
-            cone=poly.G[poly.cone_rows], capacity_rows=poly.G[poly.capacity_rows],
-            h_capacity=poly.h[poly.capacity_rows],
+            cone=rows.cone, capacity_rows=rows.capacity, h_capacity=rows.h_capacity,
             H=qp.H, g=qp.g, C=C,
             C4=C.reshape(self.max_pairs, self.rows_per_pair, self.max_pairs, self.nu_pair),
             l=qp.l, u=qp.u, lb=qp.lb, ub=qp.ub,
@@ -294,9 +313,9 @@ class CentroidalMPC:
     def assembly_constants(self) -> MPCAssemblyConstants:
         """The numbers the compiled assembly takes (its sizes, and the model's numbers it is
         handed each call: mass, inertia, weights, polytope, force unit)."""
-        poly = self.ground.polytope
+        poly, rows = self.ground.polytope, self.polytope_rows
         nps = self.n_points
-        cone, capr = poly.G[poly.cone_rows], poly.G[poly.capacity_rows]
+        cone, capr = rows.cone, rows.capacity
         nc = cone.shape[0]
         rows_point = np.zeros((self.rows_per_pair, nps, 3))
         for i in range(nps):      # cone rows on each point, capacity rows on their sum
@@ -309,7 +328,7 @@ class CentroidalMPC:
             inertia_inv_B=tuple(np.linalg.inv(self.inertia_B).ravel().tolist()),
             q=tuple(self._q_diag().tolist()), weight_force=float(c.weight_force),
             force_unit=float(self.force_unit), rows_point=tuple(rows_point.ravel().tolist()),
-            h_capacity=tuple(poly.h[poly.capacity_rows].tolist()), f_max=float(poly.f_max))
+            h_capacity=tuple(rows.h_capacity.tolist()), f_max=float(poly.f_max))
 
     # ---------------------------------------------------------------- weights
     def _q_diag(self) -> np.ndarray:
