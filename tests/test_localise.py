@@ -7,8 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from granular_mpc.validation.diagnosis.localise import (localize, measurement_noise,
-                                                        practical_floor)
+from granular_mpc.validation.diagnosis.cubes import group_keys
+from granular_mpc.validation.diagnosis.localise import (localize, localize_final,
+                                                        measurement_noise, practical_floor)
+from granular_mpc.validation.diagnosis.residuals import channel_sigma
 from granular_mpc.validation.prepare import StanceWindow
 
 FEATURES = ("depth", "sink_velocity", "rise_from_deepest", "sink_acceleration", "slip_velocity",
@@ -83,3 +85,35 @@ def test_bias_above_one_sample_error_stays_major():
     cell = next(c for c in loc.cells if c.side == "all" and c.phase_lo == 20.0)
     assert 2.0e-3 > math.hypot(0.7e-3, 1e-3)
     assert cell.major is True and loc.n_major_cells >= 1
+
+
+@pytest.mark.filterwarnings("ignore:An input array is constant")   # one commanded speed
+def test_final_model_is_judged_against_its_own_scatter():
+    """A large misfit that varies from stance to stance (late stance, bins 7–9) inflates
+    the calibrated model's σ_c; the addition removes it and leaves a 1.2 mm loading-phase
+    bias (bin 1) that is minor in units of the calibrated σ_c but major against the final
+    model's own scatter (docs/validation.md §3.7)."""
+    rng = np.random.default_rng(4)
+    W = 24
+    ws = _windows(W, 0.3e-3, rng)
+    edges = np.linspace(0, 100, 11)
+    R_after = rng.normal(0.0, 0.4e-3, (W, 1, 10))
+    R_after[:, 0, 1] += 1.2e-3
+    R_cal = R_after.copy()
+    R_cal[:, 0, 7:] += rng.normal(10e-3, 6e-3, (W, 1))      # the misfit, stance to stance
+    noise = measurement_noise(ws, ["a"])
+    sigma_cal = channel_sigma(R_cal, ["a"], group_keys(ws))
+    old = localize(ws, R_after, ["a"], edges, sigma_cal, noise=noise)
+    new, sigma_after = localize_final(ws, R_after, ["a"], edges, noise=noise)
+    assert sigma_after["a"] == pytest.approx(channel_sigma(R_after, ["a"], group_keys(ws))["a"])
+    assert sigma_after["a"] < 0.5 * sigma_cal["a"]
+    cell_old = next(c for c in old.cells if c.side == "all" and c.phase_lo == 10.0)
+    cell_new = next(c for c in new.cells if c.side == "all" and c.phase_lo == 10.0)
+    assert cell_old.bias == pytest.approx(cell_new.bias) and abs(cell_new.t) >= 4
+    assert not cell_old.major and old.n_major_cells == 0
+    assert cell_new.major is True and new.n_major_cells >= 1
+    assert abs(cell_new.normalised_bias) == pytest.approx(cell_new.bias / sigma_after["a"])
+    # a final model without structure left has no major cell against its own scatter
+    clean, _ = localize_final(ws, rng.normal(0.0, 0.4e-3, (W, 1, 10)), ["a"], edges,
+                              noise=noise)
+    assert clean.n_major_cells == 0

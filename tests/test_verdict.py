@@ -1,10 +1,12 @@
-"""The verdict with candidates the measured channels cannot tell apart
-(``validation.diagnosis.verdict``, ``VerdictInputs.channel_twins``): an addition of a
-candidate that explains another, not assessable one's signature is reported as ambiguous,
-not as the answer."""
+"""The verdict (``validation.diagnosis.verdict``): an addition of a candidate that explains
+another, not assessable one's signature is reported as ambiguous (``channel_twins``); an
+addition that leaves major cells, or after which the screening still finds a candidate it
+cannot add (``leftover_evidence``), is only partially explained — in each case the added
+term is only the closest proxy, not the answer."""
 from __future__ import annotations
 
 from granular_mpc.validation.diagnosis import ParamEstimate, Ranked
+from granular_mpc.validation.diagnosis.ranking_records import ConditionalResult
 from granular_mpc.validation.diagnosis.localization_records import Cell, Localization
 from granular_mpc.validation.diagnosis.verdict import (VerdictInputs, best_candidate_statement,
                                                        decide)
@@ -80,3 +82,60 @@ def test_structure_the_addition_leaves_is_not_called_explained():
     # nothing added: the rule does not apply (the structure is unexplained instead)
     assert VerdictInputs((), (r,), None, left, before).left_after == ()
     assert decide(VerdictInputs((), (r,), None, left, before)).status == "unexplained_structure"
+
+
+def _conditional_ranked(effect: str, given: tuple[str, ...], significant: bool,
+                        reasons: tuple[str, ...]) -> Ranked:
+    """A candidate not added, re-tested on the residual of the model with ``given``."""
+    est = ParamEstimate(1.3, 0.1, 1.1, 1.5, "-", 1.0, 0.3, 3.0, False, 1.1, 1.5)
+    return Ranked(effect=effect, kind="terrain_force", heldout_error_reduction=0.2,
+                  heldout_error_reduction_stance=0.1, delta_aicc=-30.0, folds_improved="3/3",
+                  effect_size=1.2, params={"n": est}, main="n", depends_on=(), doc="",
+                  inclusion_probability=0.9, significant=True, rank=2,
+                  conditional=(ConditionalResult(given, 0.18, significant),),
+                  not_added_because=reasons)
+
+
+def test_structure_the_screening_still_finds_after_the_addition_is_not_explained():
+    """After the addition no cell is major, but a candidate still passes every screening
+    test on the final model's residual and could not be added (its replays fail): the
+    structure is not explained by any candidate — partially explained, the added term only
+    the closest proxy (a hard layer answered by elastic_unloading, depth_hardening still
+    significant beside it)."""
+    r = _ranked("elastic_unloading")
+    reason = ("its replays make the channels it is credited with worse: grf_x +5.4 %",)
+    sig = _cell("intrusion_z", "all", 10.0, 5.3, False)          # significant, not major
+    clean = Localization((sig,), (sig,), 1, 0, {}, (), {}, {})
+    left = _conditional_ranked("depth_hardening", ("elastic_unloading",), True, reason)
+    v = VerdictInputs(("elastic_unloading",), (r, left), None, clean, clean)
+    assert [e.effect for e in v.leftover_evidence] == ["depth_hardening"]
+    assert v.remaining == () and v.left_after == ()
+    d = decide(v)
+    assert d.status == "partially_explained" and d.added == ("elastic_unloading",)
+    assert "still finds significant structure that no candidate explains" in d.text
+    assert ("depth_hardening passes every test on the final model's residual (held-out "
+            "error −18.0 %) and was not added" in d.text)
+    assert "depth_hardening was reported, not added" not in d.text   # no acceptance entry
+    assert "intrusion_z at 10–20 % of stance" in d.text               # where it is left
+    best = best_candidate_statement(v)
+    assert best.startswith("elastic_unloading is only the closest proxy")
+    assert "depth_hardening passes every test on the final residual" in best
+    assert "is the answer" not in best
+    # not significant on the final residual, or tested given another selection (a
+    # contender judged before the added term was chosen): the rule does not apply
+    for other in (_conditional_ranked("depth_hardening", ("elastic_unloading",), False, ()),
+                  _conditional_ranked("depth_hardening", (), True, reason),
+                  _conditional_ranked("depth_hardening", ("elastic_unloading", "cohesion"),
+                                      True, reason)):
+        w = VerdictInputs(("elastic_unloading",), (r, other), None, clean, clean)
+        assert w.leftover_evidence == ()
+        assert decide(w).status == "missing_effect"
+        assert best_candidate_statement(w).startswith("elastic_unloading is the answer")
+    # with a major cell left as well, both are named (the cells once)
+    major = _cell("intrusion_z", "right", 10.0, 5.9, True)
+    both = VerdictInputs(("elastic_unloading",), (r, left), None, _loc(major), clean)
+    t = decide(both).text
+    assert both.left_after == (major,) and "1 channel × phase cells of the final model" in t
+    assert "still finds significant structure" in t and "strongest cells" not in t
+    # nothing added: no leftover evidence (the candidate is simply not added)
+    assert VerdictInputs((), (left,), None, clean, clean).leftover_evidence == ()

@@ -17,7 +17,11 @@ structure that flagged the missing effect must be explained (``docs/validation.m
 * **Explained structure** (:func:`remaining_cells`): the major cells of the calibrated
   model's localisation that are still major (|t| ≥ T_CELL, |bias| ≥ MAJOR_BIAS σ and ≥
   the practical floor √(σ² + σ_meas²), :func:`.localise.practical_floor`) after the
-  additions; any left → verdict ``partially_explained``.
+  additions; any left → verdict ``partially_explained``. The final model's cells are
+  judged against the scatter of its own residual (:func:`.localise.localize_final`), and
+  a candidate that still passes the screening on that residual but could not be added
+  is structure left too (:attr:`.verdict.VerdictInputs.leftover_evidence`;
+  ``docs/validation.md`` §3.7).
 """
 
 from __future__ import annotations

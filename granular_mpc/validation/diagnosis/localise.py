@@ -14,13 +14,13 @@ from statsmodels.stats.diagnostic import acorr_ljungbox
 
 from ..prepare import StanceWindow, channel_unit
 from .candidates import Column
-from .cubes import bin_means, residual_cube
+from .cubes import bin_means, group_keys, residual_cube
 from .localization_records import (Cell, ChannelStructure, Correlate, Localization, SpeedBias,
                                    Whiteness)
 from .mutual_info import mutual_info
 from .problem import Problem
 from .regression import Regression
-from .residuals import Residuals
+from .residuals import Residuals, channel_sigma
 from .thresholds import LOCALISATION_FEATURES, MAJOR_BIAS, PRACTICAL_BIAS, T_CELL
 
 #: strongest significant cells kept in :attr:`Localization.significant_cells`
@@ -229,6 +229,9 @@ class LocalisationStage:
         theta_linear: θ of that linear re-fit.
         measurement_noise: channel → σ_meas of one sample (:func:`measurement_noise`),
             used by the practical-size test of both localisations.
+        sigma_after: channel → stance-to-stance scatter σ_c of the final model's own
+            residual, the unit of the ``after`` localisation (channel units; empty when
+            nothing was added: ``after`` is ``before``).
     """
 
     before: Localization
@@ -237,6 +240,7 @@ class LocalisationStage:
     R_after: np.ndarray
     theta_linear: Mapping[str, float]
     measurement_noise: Mapping[str, float] = field(default_factory=dict)
+    sigma_after: Mapping[str, float] = field(default_factory=dict)
 
 
 def localise_models(problem: Problem, res: Residuals, regression: Regression,
@@ -244,6 +248,13 @@ def localise_models(problem: Problem, res: Residuals, regression: Regression,
                     n_fitted: int, *, seed: int = 0) -> LocalisationStage:
     """Localise the calibrated model (its calibration re-fitted linearly on the regression's
     rows) and the final model (replayed ``final_preds``; None: nothing was added).
+
+    Each model is judged against its *own* stance-to-stance scatter σ_c: the calibrated
+    model against the residual stage's (``res.sigma``), the final model against the
+    scatter of its own residual (:func:`.residuals.channel_sigma` of ``R_after``). A large
+    misfit the additions removed (a late-stance knee error that varies from stance to
+    stance) inflates the calibrated model's σ_c and would hide, in units of it, a cell the
+    additions left — the structure an addition must explain (``docs/validation.md`` §3.7).
 
     Args:
         nuisance: the calibration's columns (the regression's base columns).
@@ -256,12 +267,30 @@ def localise_models(problem: Problem, res: Residuals, regression: Regression,
     noise = measurement_noise(problem.windows, problem.channels)
     before = localize(problem.windows, R_cal, problem.channels, problem.edges, res.sigma,
                       model_df=len(base_keys), seed=seed, noise=noise)
-    R_after = (residual_cube(problem.windows, final_preds, problem.channels, problem.edges)
-               if final_preds is not None else R_cal)
-    after = localize(problem.windows, R_after, problem.channels, problem.edges, res.sigma,
-                     model_df=n_fitted, seed=seed, noise=noise)
-    return LocalisationStage(before, after, R_cal, R_after, theta_lin, noise)
+    if final_preds is None:
+        return LocalisationStage(before, before, R_cal, R_cal, theta_lin, noise)
+    R_after = residual_cube(problem.windows, final_preds, problem.channels, problem.edges)
+    after, sigma_after = localize_final(problem.windows, R_after, problem.channels,
+                                        problem.edges, model_df=n_fitted, seed=seed, noise=noise)
+    return LocalisationStage(before, after, R_cal, R_after, theta_lin, noise, sigma_after)
+
+
+def localize_final(windows: Sequence[StanceWindow], R_after: np.ndarray,
+                   channels: Sequence[str], edges: np.ndarray, *, model_df: int = 0,
+                   seed: int = 0, noise: Mapping[str, float] | None = None
+                   ) -> tuple[Localization, dict[str, float]]:
+    """Localise the final model's residual ``R_after`` (W, C, B) against its own
+    stance-to-stance scatter (:func:`.residuals.channel_sigma` within trial × side groups,
+    as the residual stage does for the calibrated model).
+
+    Returns:
+        the localisation and channel → σ_c of ``R_after`` (channel units).
+    """
+    sigma = channel_sigma(R_after, channels, group_keys(windows))
+    return (localize(windows, R_after, channels, edges, sigma, model_df=model_df, seed=seed,
+                     noise=noise), sigma)
 
 
 __all__ = ["localize", "where_summary", "spearman", "Localization", "LocalisationStage",
-           "localise_models", "measurement_noise", "practical_floor", "MAX_LISTED_CELLS"]
+           "localise_models", "localize_final", "measurement_noise", "practical_floor",
+           "MAX_LISTED_CELLS"]

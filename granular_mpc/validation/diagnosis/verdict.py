@@ -65,6 +65,19 @@ class VerdictInputs:
         return remaining_cells(self.before, self.after)
 
     @property
+    def leftover_evidence(self) -> tuple[Ranked, ...]:
+        """The candidates that still pass every screening test on the residual of the
+        final model (their conditional re-test given exactly the added effects is
+        significant) and were not added: structure the screening still finds after the
+        additions and that no candidate explains (its replays or its coefficients failed
+        the acceptance). Empty when nothing was added."""
+        if not self.selected:
+            return ()
+        sel = tuple(self.selected)
+        return tuple(e for e in self.ranking if not e.added and any(
+            c.significant and tuple(c.given) == sel for c in e.conditional))
+
+    @property
     def left_after(self) -> tuple:
         """Every major cell of the final model after the additions, strongest first: the
         calibrated model's that remain (:attr:`remaining`) and any the additions did not
@@ -122,22 +135,55 @@ def missing_effect(v: VerdictInputs) -> Verdict | None:
 def partially_explained(v: VerdictInputs) -> Verdict | None:
     """Something was added, but structure is left: the calibrated model's major cells
     that flagged the missing effect are not all gone, or the final model has major cells
-    of its own (structure the additions did not explain). Say what was added and what
-    remains where."""
+    of its own (structure the additions did not explain), or the screening still finds a
+    candidate that passes every test on the final model's residual and could not be added
+    (:attr:`VerdictInputs.leftover_evidence`: structure no candidate explains). Say what
+    was added and what remains where."""
     left = v.remaining
-    if not v.selected or not (left or v.left_after):
+    if not v.selected or not (left or v.left_after or v.leftover_evidence):
         return None
     base = missing_effect(v).text.split(". After adding")[0]
     if left:
         text = (base + f". The structure that flagged it is only partly explained: "
                 f"{len(left)} of the calibrated model's major cells remain, e.g. "
                 + "; ".join(cell_words(c) for c in left[:LISTED_REMAINING]))
-    else:
+    elif v.left_after:
         new = v.left_after
         text = (base + f". Structure is left that the addition does not explain: {len(new)} "
                 "channel × phase cells of the final model are major, e.g. "
                 + "; ".join(cell_words(c) for c in new[:LISTED_REMAINING]))
+    else:
+        return Verdict("partially_explained", base + ". " + leftover_evidence_sentence(v),
+                       v.selected)
+    if v.leftover_evidence:
+        text += ". " + leftover_evidence_sentence(v, where=False)
     return Verdict("partially_explained", text, v.selected)
+
+
+def leftover_evidence_sentence(v: VerdictInputs, *, where: bool = True) -> str:
+    """The structure the screening still finds after the additions, in words: which
+    candidates pass every test on the final model's residual, why they were not added,
+    and (``where``) the final model's strongest cells ("" if none)."""
+    ev = v.leftover_evidence
+    if not ev:
+        return ""
+    sel = tuple(v.selected)
+
+    def one(e: Ranked) -> str:
+        red = next(c.heldout_error_reduction for c in e.conditional
+                   if c.significant and tuple(c.given) == sel)
+        why = ("its replays or coefficients failed the acceptance" if e.not_added_because
+               else "it was not refined as a contender")
+        return (f"{e.effect} passes every test on the final model's residual (held-out "
+                f"error {error_change(red)}) and was not added ({why})")
+
+    text = (f"After adding {', '.join(v.selected)} the screening still finds significant "
+            "structure that no candidate explains: " + "; ".join(one(e) for e in ev))
+    cells = v.after.significant_cells[:LISTED_REMAINING] if where else ()
+    if cells:
+        text += ("; the final model's strongest cells: "
+                 + "; ".join(cell_words(c) for c in cells))
+    return text
 
 
 def unexplained_structure(v: VerdictInputs) -> Verdict | None:
@@ -193,6 +239,11 @@ def best_candidate_statement(v: VerdictInputs) -> str:
         elif v.left_after:
             why.append(f"{len(v.left_after)} major cells are left after the addition, e.g. "
                        + cell_words(v.left_after[0]))
+        if v.leftover_evidence:
+            why.append("the screening still finds structure after the addition that no "
+                       "candidate explains (" + ", ".join(
+                           f"{e.effect} passes every test on the final residual but was not "
+                           "added" for e in v.leftover_evidence) + ")")
         if twins:
             why.append(f"the data cannot tell it from {', '.join(twins)}")
         if v.twins_of(name):
@@ -234,4 +285,4 @@ def decide(inputs: VerdictInputs) -> Verdict:
 __all__ = ["VerdictInputs", "Verdict", "decide", "VERDICT_RULES", "effect_sentence",
            "missing_effect", "partially_explained", "unexplained_structure",
            "no_significant_missing_effect", "error_change", "rejected_sentence",
-           "best_candidate_statement", "LISTED_REMAINING"]
+           "best_candidate_statement", "leftover_evidence_sentence", "LISTED_REMAINING"]
