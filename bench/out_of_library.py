@@ -32,12 +32,23 @@ never meet). Output: a progress line per case, the targets table of issue 11 and
 per-case table (case, truth, verdict, added / proposed, coefficients, the affected
 channel's replay RMSE before → after); ``--json PATH`` writes figures and rows.
 
+Each form case also replays the truth at its true value (``validate``, the library run's
+calibration): what the right term with the right coefficient does to the affected channel.
+A case is *detectable* when that cuts the affected channel's replay RMSE by ≥ 50 % — else
+even the perfect answer cannot meet the −50 % target. With ``--reuse`` a noisy data set
+already in ``--out`` is diagnosed again rather than re-synthesised (copy stored ones there).
+With ``--user-terms`` a third table lists the user term per case (rank, added, coefficient
+error, affected-channel reduction by the feedback run / by the truth, found by whom).
+
 Figures (``name: value``): ool_wrong_answer_rate, ool_found_rate (proposal or user term
 ranked first in the feedback run and the affected channel's replay RMSE −50 %),
+ool_found_by_proposal_rate, ool_found_by_user_term_rate (the same split by who found it),
+ool_detectable_rate, and ool_found_rate_detectable (and its split) over the detectable cases,
 pair_both_found_rate, pair_rank1_rate, pair_coef_within_15pct_rate, null_added_rate,
 added_worsening (added terms whose replay worsens a channel they are credited with),
 cases, null_cases, pair_cases. Kept apart from ``bench/recovery.py`` (the library's own
-recovery study).
+recovery study). The forms and cases are in ``bench/ool_forms.py``, the scoring and
+tables in ``bench/ool_scoring.py`` (re-exported here).
 """
 
 import argparse

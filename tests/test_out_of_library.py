@@ -156,3 +156,52 @@ def test_scores_and_targets_table(ool):
     cases = ool.case_table([found, null])
     assert "intrusion_z: 0.008 → 0.006 / 0.002" in cases and "[law coef err -10 %]" in cases
     assert "| z: v_z |" in cases and "proposed_force (1 terms; z_v_z=-11)" in cases
+
+
+def test_found_by_whom_and_detectable(ool):
+    """``found`` split by who found it (the proposal or the user term) and the detectable
+    cases: the truth at its true value cuts the affected channel by ≥ 50 %."""
+    hl = ool.Case("hard_layer_m1_s1", 1, "hard_layer", 8000.0)
+    user = {"case": hl.__dict__, "lib": _run("partially_explained", ["elastic_unloading"],
+                                             {"intrusion_z": [0.004, 0.003]}),
+            "proposal": None,
+            "fb": _run("partially_explained", ["user_hard_layer"],
+                       {"intrusion_z": [0.004, 0.0016]},
+                       fitted={"user_hard_layer": {"k": 7200.0}}),
+            "truth_replay": {"intrusion_z": [0.004, 0.0012]}}
+    user["fb"]["ranks"] = {"user_hard_layer": 1}
+    s = ool.score(user)
+    assert s["found"] and s["found_by"] == "user" and s["found_user"]
+    assert not s["found_proposal"] and s["user_rank"] == 1 and s["user_added"]
+    assert s["truth_red"] == pytest.approx(0.7) and s["detectable"] is True
+    assert s["coef_err"] == pytest.approx(-0.1)
+    # the truth itself cuts the channel by 20 % only: not detectable, and not found
+    weak = {**user, "truth_replay": {"intrusion_z": [0.004, 0.0032]},
+            "fb": {**user["fb"], "replay": {"intrusion_z": [0.004, 0.0033]}}}
+    w = ool.score(weak)
+    assert w["detectable"] is False and not w["found"] and w["found_by"] == ""
+    # nothing replayed by the diagnoses: the truth's replay names the affected channel
+    quiet = {**user, "lib": _run("no_significant_missing_effect", [], {}),
+             "fb": _run("no_significant_missing_effect", [], {})}
+    q = ool.score(quiet)
+    assert q["channel"] == "intrusion_z" and q["fb_red"] == 0.0 and not q["found"]
+    # a proposal's find
+    vd = ool.Case("vdamp_m0_s1", 1, "vdamp", 10.0)
+    prop = {"case": vd.__dict__, "lib": _run("missing_effect", ["cohesion"],
+                                             {"intrusion_z": [0.008, 0.006]}),
+            "proposal": None, "fb": _run("missing_effect", ["proposed_force"],
+                                         {"intrusion_z": [0.008, 0.002]}),
+            "truth_replay": {"intrusion_z": [0.008, 0.003]}}
+    p = ool.score(prop)
+    assert p["found_by"] == "proposal" and p["found_proposal"] and not p["found_user"]
+    figs = ool.figures([user, weak, quiet, prop])
+    assert figs["ool_found_rate"] == 0.5
+    assert figs["ool_found_by_user_term_rate"] == 0.25
+    assert figs["ool_found_by_proposal_rate"] == 0.25
+    assert figs["ool_detectable_rate"] == 0.75
+    assert figs["ool_found_rate_detectable"] == pytest.approx(2 / 3)
+    table = ool.targets_table([user, weak, quiet, prop])
+    assert "| … found by the proposal / by the user term | 1/4 / 1/4 | |" in table
+    assert "| … found among the detectable (proposal / user term) | 2/3 (1/3 / 1/3) |" in table
+    ut = ool.user_table([user, weak, quiet, prop])
+    assert "| hard_layer_m1_s1 | hard_layer k=8000 N/m | 1, yes | -10 % | intrusion_z: +60 % / +70 % | user |" in ut

@@ -3,7 +3,7 @@ indistinguishable partner of the leading candidate is refined by replays even wh
 not significant, and nothing is refined without a significant leader."""
 
 from granular_mpc.validation.diagnosis.ranking_records import CandidateStats
-from granular_mpc.validation.diagnosis.refine import contenders_for
+from granular_mpc.validation.diagnosis.refine import contenders_for, is_rival
 from granular_mpc.validation.diagnosis.result import IndistinguishablePair
 from granular_mpc.validation.diagnosis.screen import (MIN_SHARED_INCLUSION, inclusion_ties,
                                                       share_inclusion)
@@ -52,9 +52,10 @@ def test_partner_that_is_not_significant_is_refined():
     # with room for two significant contenders the partner comes after them
     out = [r.effect for r in contenders_for(stats, [], set(), 2, pairs)]
     assert out == ["joint_friction", "inertial_drag", "depth_hardening"]
-    # without the pairs the old rule: significant candidates only
+    # without the pairs: the significant candidates, then depth_hardening as a rival (it
+    # passes every test but the inclusion, is_rival); cohesion passes nothing
     out = [r.effect for r in contenders_for(stats, [], set(), 2, ())]
-    assert out == ["joint_friction", "inertial_drag"]
+    assert out == ["joint_friction", "inertial_drag", "depth_hardening"]
 
 
 def test_partner_order_in_the_pair_does_not_matter():
@@ -69,10 +70,11 @@ def test_only_the_leading_contenders_partner_is_added():
     stats, _ = _split_screening()
     pairs = [IndistinguishablePair(("inertial_drag", "cohesion"), 0.95, (0.2, 0.0), "")]
     out = [r.effect for r in contenders_for(stats, [], set(), 2, pairs)]
-    assert out == ["joint_friction", "inertial_drag"]
+    assert out == ["joint_friction", "inertial_drag", "depth_hardening"]   # (a rival)
+    assert "cohesion" not in out                  # the partner of a non-leader is not
     # once the leader is rejected, inertial drag leads and its partner is refined
     out = [r.effect for r in contenders_for(stats, [], {"joint_friction"}, 2, pairs)]
-    assert out == ["inertial_drag", "cohesion"]
+    assert out == ["inertial_drag", "cohesion", "depth_hardening"]
 
 
 def test_nothing_is_refined_without_a_significant_leader():
@@ -127,3 +129,39 @@ def test_the_acceptance_baseline_is_the_refined_model_without_the_new_term():
     without_term(Pool(), res, cands, fit, [])
     (v,) = seen.values()
     assert v.joints == () and v.sensors == () and "cohesion.suction" not in v.theta
+
+
+def test_a_rival_that_lost_only_the_bootstrap_vote_is_refined():
+    """A candidate passing every test but the inclusion (the linear bootstrap voted for
+    another) is refined beside the leader; one failing another test, a strength twin, or
+    any candidate when nothing is significant is not."""
+    rows = [_row("joint_friction", 0.57, 1.0), _row("user_stiction", 0.53, 0.38),
+            _row("elastic_unloading", 0.10, 0.62, passes=False),
+            _row("cohesion", 0.30, 0.0)]
+    stats = _stats(rows)
+    by = {r.effect: r for r in stats}
+    assert is_rival(by["user_stiction"]) and not is_rival(by["joint_friction"])
+    assert not is_rival(by["elastic_unloading"])
+    out = [r.effect for r in contenders_for(stats, [], set(), 1)]
+    assert out == ["joint_friction", "user_stiction"]          # at most 1 rival here
+    out = [r.effect for r in contenders_for(stats, [], set(), 2)]
+    assert out == ["joint_friction", "user_stiction", "cohesion"]
+    out = [r.effect for r in contenders_for(stats, [], set(), 2, (), {"user_stiction"})]
+    assert out == ["joint_friction", "cohesion"]                # a twin is no rival
+    # a rival fails the held-out test: not refined
+    weak = _stats([_row("joint_friction", 0.57, 1.0), _row("user_stiction", 0.01, 0.38)])
+    assert [r.effect for r in contenders_for(weak, [], set(), 2)] == ["joint_friction"]
+    # nothing significant: nothing refined, rivals included
+    none = _stats([_row("user_stiction", 0.53, 0.38), _row("cohesion", 0.30, 0.1)])
+    assert contenders_for(none, [], set(), 2) == []
+
+
+def test_a_rival_is_judged_only_when_it_beats_the_others():
+    """A rival is no fallback: judged only when its refined AICc is the lowest."""
+    from granular_mpc.validation.diagnosis.refine import judging_order
+
+    scored = [(337.9, "user_knee_spring"), (487.9, "joint_friction"), (499.3, "inertial_drag")]
+    assert judging_order(scored, {"inertial_drag"}) == ["user_knee_spring", "joint_friction"]
+    scored = [(420.0, "joint_friction"), (380.0, "user_stiction")]
+    assert judging_order(scored, {"user_stiction"}) == ["user_stiction", "joint_friction"]
+    assert judging_order(scored, set()) == ["user_stiction", "joint_friction"]

@@ -21,6 +21,10 @@ from .result import RefineIteration
 
 #: secant step as a share of the current distance from neutral
 SECANT_SHARE = 0.25
+#: after the requested iterations, at most this many more while the fit still moves …
+MAX_EXTRA_ITERATIONS = 3
+#: … by more than this share of a column's distance from neutral (or of its range)
+MOVING_SHARE = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -42,12 +46,30 @@ class GaussNewtonFit:
     sens_selected: Mapping[str, np.ndarray]
 
 
+def still_moving(cols: Sequence[Column], before: Mapping[str, float],
+                 after: Mapping[str, float]) -> bool:
+    """Whether the last Gauss–Newton step moved some column by more than
+    :data:`MOVING_SHARE` of its distance from neutral (the larger of before and after; at
+    least that share of 1 % of its range). A fit started far from its optimum (a
+    screening estimate linearised at a small default) takes secant steps of growing size
+    and is not converged after the requested iterations: :func:`refine_replays` then goes
+    on, at most :data:`MAX_EXTRA_ITERATIONS` more."""
+    for c in cols:
+        scale = max(abs(before[c.key] - c.neutral), abs(after[c.key] - c.neutral),
+                    0.01 * (c.upper - c.lower))
+        if abs(after[c.key] - before[c.key]) > MOVING_SHARE * scale:
+            return True
+    return False
+
+
 def refine_replays(problem: Problem, pool: ReplayPool, res: Residuals, candidates: CandidateSet,
                    selected: Sequence[str], start_values: Mapping[str, float],
                    nuisance: Sequence[Column], *, iterations: int) -> GaussNewtonFit:
     """Gauss–Newton on the replays for the selected effects' magnitude columns (and the
     calibration), on the stance-averaged rows: the sensitivities are recomputed at the
-    current values (a secant of 25 % of the current magnitude).
+    current values (a secant of 25 % of the current magnitude). After ``iterations``
+    iterations it goes on while the fit still moves (:func:`still_moving`), at most
+    :data:`MAX_EXTRA_ITERATIONS` more.
 
     Args:
         start_values: column key → starting value (default: the column's neutral).
@@ -67,7 +89,8 @@ def refine_replays(problem: Problem, pool: ReplayPool, res: Residuals, candidate
         specs = [(candidates.infos[s], candidates.params_at(s, vals)) for s in selected]
         return effect_variant(specs, Variant(theta={**base.theta, **nuis}))
 
-    for it in range(max(1, iterations)):
+    it = 0
+    while True:
         variants = {"cur": variant_with(values, theta_nuis)}
         steps = {}
         for c in cols:
@@ -111,12 +134,18 @@ def refine_replays(problem: Problem, pool: ReplayPool, res: Residuals, candidate
                                    float(np.sum((d.y[ok] - A[ok] @ delta) ** 2)), dict(values)))
         for c, dlt in zip(nuisance, delta[:len(nuisance)]):
             theta_nuis[c.param] = float(np.clip(theta_nuis[c.param] + dlt, c.lower, c.upper))
+        before_step = dict(values)
         for c, dlt in zip(cols, delta[len(nuisance):]):
             values[c.key] = float(np.clip(values[c.key] + dlt, c.lower, c.upper))
+        it += 1
+        if it >= max(1, iterations) + MAX_EXTRA_ITERATIONS or (
+                it >= max(1, iterations) and not still_moving(cols, before_step, values)):
+            break
     final = pool.run({"final": variant_with(values, theta_nuis)})["final"]
     log.append(RefineIteration("final", values=dict(values), calibration=dict(theta_nuis)))
     fitted = {s: candidates.params_at(s, values) for s in selected}
     return GaussNewtonFit(fitted, theta_nuis, tuple(final), tuple(log), S_sel)
 
 
-__all__ = ["GaussNewtonFit", "refine_replays", "SECANT_SHARE"]
+__all__ = ["GaussNewtonFit", "refine_replays", "still_moving", "SECANT_SHARE",
+           "MAX_EXTRA_ITERATIONS", "MOVING_SHARE"]

@@ -26,7 +26,7 @@ from .ranking_records import CandidateStats, ConditionalResult, Ranked, RefinedF
 from .regression import aicc
 from .residuals import Residuals
 from .result import ConditionalRow, IndistinguishablePair, RefinedHeldout, SelectionStep
-from .screen import Screening, candidate_stats, channel_heldout
+from .screen import Screening, candidate_stats, channel_heldout, passes_but_inclusion
 
 #: bounds of the scale along the secant from the calibrated to the refined model
 SECANT_BOUNDS = (0.0, 2.0)
@@ -74,7 +74,9 @@ def _neutral(candidates: CandidateSet, selected) -> dict[str, float]:
 
 def contenders_for(stats: Sequence[CandidateStats], selected: Sequence[str],
                    rejected: Collection[str], max_contenders: int,
-                   pairs: Sequence[IndistinguishablePair] = ()) -> list[CandidateStats]:
+                   pairs: Sequence[IndistinguishablePair] = (),
+                   twins: Collection[str] = (), with_rivals: bool = True
+                   ) -> list[CandidateStats]:
     """The candidates the replays refine before one is added.
 
     The first ``max_contenders`` significant candidates not yet added or rejected, then
@@ -86,7 +88,9 @@ def contenders_for(stats: Sequence[CandidateStats], selected: Sequence[str],
     the two — their refined replays' AICc — never runs and the linear leader is added by
     default. The partner still has to win that comparison and pass the acceptance
     (:mod:`.acceptance`) to be added. Without a significant leader nothing is refined, so
-    the rule adds nothing on data where the screening finds nothing.
+    the rule adds nothing on data where the screening finds nothing. Last, at most
+    ``max_contenders`` rivals (:func:`is_rival`: every test passed but the inclusion),
+    for the same reason and under the same conditions.
 
     Args:
         stats: the current candidate statistics, best first.
@@ -95,9 +99,11 @@ def contenders_for(stats: Sequence[CandidateStats], selected: Sequence[str],
         max_contenders: significant candidates refined.
         pairs: the screening's indistinguishable pairs (pass none once an effect has been
             added: they were measured against the calibrated model only).
+        twins: terrain-strength twins (never rivals, :mod:`.strength`).
+        with_rivals: append the rivals (False: the significant contenders and partners).
 
     Returns:
-        The contenders, in the order of ``stats`` then the partners.
+        The contenders, in the order of ``stats``, then the partners, then the rivals.
     """
     free = [r for r in stats if r.effect not in selected and r.effect not in rejected]
     out = [r for r in free if r.significant][:max_contenders]
@@ -107,7 +113,27 @@ def contenders_for(stats: Sequence[CandidateStats], selected: Sequence[str],
     partners = {b for p in pairs for a, b in (p.effects, p.effects[::-1]) if a == lead}
     have = {r.effect for r in out}
     out += [r for r in free if r.effect in partners and r.effect not in have]
+    have = {r.effect for r in out}
+    if with_rivals:
+        out += [r for r in free
+                if r.effect not in have and is_rival(r, twins)][:max_contenders]
     return out
+
+
+def is_rival(r: CandidateStats, twins: Collection[str] = ()) -> bool:
+    """A candidate that passes every screening test but the bootstrap inclusion (and is
+    no terrain-strength twin): the linear fits' vote went to another candidate, but its
+    own evidence is strong. The bootstrap votes with the *linearised* model, which
+    misorders strong nonlinear effects (a torque-sensing gain linearised at a small gain,
+    a stiction law beside the library's Coulomb friction), so such a rival is refined by
+    replays beside the leader and may win on its refined AICc — only win: a rival is
+    added only when its refined AICc is below every other contender's (:func:`refine`),
+    never as the fallback of a rejected leader."""
+    if r.significant or r.effect in twins:
+        return False
+    return passes_but_inclusion({f: getattr(r, f) for f in (
+        "heldout_error_reduction", "delta_aicc", "effect_size",
+        "heldout_error_reduction_stance")})
 
 
 def without_term(pool: ReplayPool, res: Residuals, candidates: CandidateSet,
@@ -124,6 +150,15 @@ def without_term(pool: ReplayPool, res: Residuals, candidates: CandidateSet,
     specs = [(candidates.infos[s], dict(fit.fitted[s])) for s in previous]
     variant = effect_variant(specs, Variant(theta={**res.base.theta, **fit.theta}))
     return tuple(pool.run({"without": variant})["without"])
+
+
+def judging_order(scored: Sequence[tuple[float, str]], rivals: Collection[str]) -> list[str]:
+    """The refined contenders the acceptance judges, by refined AICc (``scored``: (AICc,
+    effect)): every contender that is not a rival, and a rival only when its AICc is
+    below every other contender's (it beat them on the replays, :func:`is_rival`)."""
+    best_other = min((a for a, e in scored if e not in rivals), default=np.inf)
+    return [e for a, e in sorted(scored, key=lambda t: t[0])
+            if e not in rivals or a < best_other]
 
 
 def _conditional_row(r: CandidateStats) -> ConditionalRow:
@@ -165,9 +200,14 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
 
     while len(selected) < max_effects:
         contenders = contenders_for(stats, selected, rejected, max_contenders,
-                                    scr.indistinguishable if not selected else ())
+                                    scr.indistinguishable if not selected else (),
+                                    {t.effect for t in scr.strength_twins})
         if not contenders:
             break
+        twins = {t.effect for t in scr.strength_twins}
+        rivals = {r.effect for r in contenders} - {r.effect for r in contenders_for(
+            stats, selected, rejected, max_contenders,
+            scr.indistinguishable if not selected else (), twins, with_rivals=False)}
         prev_vals = _values(fitted, candidates, selected)
         tried = []
         for r in contenders:
@@ -185,7 +225,10 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
                                                      dict(fit.fitted[r.effect])))
         tried.sort(key=lambda t: t[0])
         chosen = None
+        judged = set(judging_order([(t[0], t[1].effect) for t in tried], rivals))
         for _, cand, fit in tried:            # by AICc; the first that passes is added
+            if cand.effect not in judged:
+                continue                      # a rival only wins, it is no fallback
             # the term's own replays: with and without it at the same (co-refitted) θ
             before = without_term(pool, res, candidates, fit, selected)
             acc = judge(windows, channels, res.sigma, candidates.infos[cand.effect],
@@ -281,4 +324,5 @@ def _refined_heldout(problem, candidates, res, scr, selected, fitted,
         REFINED_HELDOUT_NOTE)
 
 
-__all__ = ["Refinement", "refine", "contenders_for", "without_term", "SECANT_BOUNDS"]
+__all__ = ["Refinement", "refine", "contenders_for", "is_rival", "judging_order",
+           "without_term", "SECANT_BOUNDS"]

@@ -1,0 +1,246 @@
+"""Scoring and tables of the out-of-library benchmark (``bench/out_of_library.py``): per
+case, whether the truth was found and by whom (the proposal or the user's term), whether it
+was detectable at all, and the targets / per-case / user-term tables."""
+
+from __future__ import annotations
+
+import math
+
+from ool_forms import FORM_BY_NAME, PROPOSED, PROPOSED_PREFIX, Case
+
+#: "found": the affected channel's replay RMSE falls by at least this share (issue 11)
+FOUND_REDUCTION = 0.5
+#: "detectable": the truth at its true value cuts the affected channel by at least this
+DETECTABLE_REDUCTION = 0.5
+
+
+def affected_channel(case: Case, row: dict) -> str:
+    """The channel the truth moves: among the form's channels (names or prefixes), the one
+    whose base-model replay RMSE is largest in units of its scatter (the base replay is
+    the same in both runs; when neither run replayed, the truth's replay
+    (``row["truth_replay"]``, same calibration) gives the base RMSE; '' without any)."""
+    if not case.form:
+        return ""
+    form = FORM_BY_NAME[case.form]
+    runs = [r for r in (row.get("fb"), row.get("lib")) if r and r["replay"]]
+    if runs:
+        rep, sigma = runs[0]["replay"], runs[0]["sigma"]
+    elif row.get("truth_replay"):
+        rep, sigma = row["truth_replay"], row["lib"]["sigma"]
+    else:
+        return ""
+    cands = [c for c in rep if any(c == p or (p.endswith("_") and c.startswith(p))
+                                   for p in form.channels)]
+    if not cands:
+        return ""
+    return max(cands, key=lambda c: rep[c][0] / sigma.get(c, 1.0))
+
+
+def _reduction(run: dict | None, ch: str) -> float:
+    if not run or not ch or ch not in run["replay"]:
+        return 0.0 if run and not run["added"] else math.nan
+    b, a = run["replay"][ch]
+    return 1.0 - a / b if b > 0 else math.nan
+
+
+def truth_reduction(row: dict, ch: str) -> float:
+    """The affected channel's replay RMSE reduction by the truth at its true value (nan
+    when the truth was not replayed)."""
+    rep = row.get("truth_replay") or {}
+    if ch not in rep or not rep[ch][0] > 0:
+        return math.nan
+    return 1.0 - rep[ch][1] / rep[ch][0]
+
+
+def score(row: dict) -> dict:
+    """Per-case judgements for the targets table.
+
+    ``found``: the proposal or the user term ranked first and added in the feedback run,
+    and the affected channel's replay RMSE −50 %; ``found_by``: ``proposal``, ``user`` or
+    ''. ``detectable``: the truth itself, replayed at its true value, cuts the affected
+    channel's RMSE by ≥ :data:`DETECTABLE_REDUCTION` — a case where even the right term
+    with the right coefficient cannot reach −50 % is not one the target can be met on
+    (nan when the truth was not replayed).
+    """
+    case = Case(**row["case"])
+    lib, fb = row["lib"], row.get("fb")
+    ch = affected_channel(case, row)
+    out = {"channel": ch, "lib_red": _reduction(lib, ch), "fb_red": _reduction(fb, ch)}
+    out["truth_red"] = truth_reduction(row, ch)
+    out["detectable"] = (out["truth_red"] >= DETECTABLE_REDUCTION
+                         if not math.isnan(out["truth_red"]) else math.nan)
+    form = FORM_BY_NAME.get(case.form)
+    found_name = ""
+    if fb and fb["rank1_added"] and (fb["rank1"].startswith(PROPOSED_PREFIX)
+                                     or fb["rank1"] == (form.user if form else "")):
+        found_name = fb["rank1"]
+    out["found"] = bool(found_name) and (out["fb_red"] or 0.0) >= FOUND_REDUCTION
+    out["found_term"] = found_name
+    out["found_by"] = ("" if not out["found"] else
+                       "proposal" if found_name.startswith(PROPOSED_PREFIX) else "user")
+    out["found_proposal"] = out["found_by"] == "proposal"
+    out["found_user"] = out["found_by"] == "user"
+    user = form.user if form else ""
+    out["user_rank"] = (fb or {}).get("ranks", {}).get(user) if user else None
+    out["user_added"] = bool(fb and user in fb["added"])
+    right = form.family if form and row.get("measurement") else ""
+    out["family_found"] = bool(right) and lib["rank1"] == right and lib["rank1_added"]
+    out["wrong_answer"] = bool(lib["added"]) and lib["is_answer"] and lib["rank1"] != right
+    # the coefficient: the user term's, or the proposal's feature that is the law
+    coef = math.nan
+    if form and fb:
+        if form.user in fb["fitted"]:
+            coef = (fb["fitted"][form.user][form.param] - case.magnitude) / case.magnitude
+        elif form.proposal_feature and PROPOSED in fb["fitted"]:
+            key = form.proposal_feature.replace(":", "_")
+            v = fb["fitted"][PROPOSED].get(key)
+            if v is not None:
+                coef = (v - form.sign * case.magnitude) / abs(case.magnitude)
+    out["coef_err"] = coef
+    if case.partner:
+        from granular_mpc.config import parse_effect_string
+        from granular_mpc.effects import effect_info
+
+        spec = parse_effect_string(case.partner)
+        name = spec["name"]
+        true = effect_info(name).resolve_params(spec["params"])[case.partner_param]
+        fit = lib["fitted"].get(name, {}).get(case.partner_param)
+        out["partner_rank1"] = lib["rank1"] == name and lib["rank1_added"]
+        out["partner_coef_err"] = (fit - true) / true if fit is not None else math.nan
+        out["both_found"] = name in lib["added"] and bool(found_name)
+    out["null_added"] = bool(lib["added"]) if case.mismatch else False
+    out["worsened"] = len(lib["worsened"]) + (len(fb["worsened"]) if fb else 0)
+    return out
+
+
+def figures(rows: list[dict]) -> dict:
+    sc = [(Case(**r["case"]), score(r)) for r in rows]
+    ool = [s for c, s in sc if c.group in ("ool", "pair")]
+    pairs = [s for c, s in sc if c.group == "pair"]
+    nulls = [s for c, s in sc if c.group == "null"]
+    single = [s for c, s in sc if c.group == "ool"]
+    detectable = [s for s in single if s["detectable"] is True]
+
+    def rate(xs, key):
+        vals = [x for x in xs if isinstance(x.get(key), bool) or not math.isnan(x.get(key, math.nan))]
+        return sum(bool(x[key]) for x in vals) / len(vals) if vals else math.nan
+
+    return {
+        "ool_wrong_answer_rate": rate([s for c, s in sc if c.group == "ool"], "wrong_answer"),
+        "ool_found_rate": rate(single, "found"),
+        "ool_found_by_proposal_rate": rate(single, "found_proposal"),
+        "ool_found_by_user_term_rate": rate(single, "found_user"),
+        "ool_detectable_rate": rate(single, "detectable"),
+        "ool_found_rate_detectable": rate(detectable, "found"),
+        "ool_found_by_proposal_rate_detectable": rate(detectable, "found_proposal"),
+        "ool_found_by_user_term_rate_detectable": rate(detectable, "found_user"),
+        "pair_both_found_rate": rate(pairs, "both_found"),
+        "pair_rank1_rate": rate(pairs, "partner_rank1"),
+        "pair_coef_within_15pct_rate": (sum(abs(p["partner_coef_err"]) <= 0.15 for p in pairs)
+                                        / len(pairs) if pairs else math.nan),
+        "null_added_rate": rate(nulls, "null_added"),
+        "added_worsening": sum(s["worsened"] for _, s in sc),
+        "cases": len(ool) - len(pairs), "pair_cases": len(pairs), "null_cases": len(nulls),
+    }
+
+
+def _pct(x: float) -> str:
+    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{100 * x:+.0f} %"
+
+
+def _frac(rows: list[dict], group: str, key: str, detectable_only: bool = False) -> str:
+    sc = [score(r) for r in rows if Case(**r["case"]).group == group]
+    if detectable_only:
+        sc = [s for s in sc if s["detectable"] is True]
+    vals = [s[key] for s in sc if key in s and not (isinstance(s[key], float) and math.isnan(s[key]))]
+    return f"{sum(bool(v) for v in vals)}/{len(vals)}" if vals else "n/a"
+
+
+def targets_table(rows: list[dict]) -> str:
+    """The targets table of issue 11, from this benchmark's cases."""
+    pairs = [score(r) for r in rows if Case(**r["case"]).group == "pair"]
+    within = sum(abs(p["partner_coef_err"]) <= 0.15 for p in pairs)
+    worsened = sum(score(r)["worsened"] for r in rows)
+    lines = ["| figure | this run | target |", "|---|---|---|",
+             f"| library effect (pair member) ranked first | {_frac(rows, 'pair', 'partner_rank1')} | ≥ 90 % |",
+             f"| main coefficient within 15 % (pair member) | {within}/{len(pairs)} | ≥ 85 % |"
+             if pairs else "| main coefficient within 15 % (pair member) | n/a | ≥ 85 % |",
+             f"| both effects of a pair found | {_frac(rows, 'pair', 'both_found')} | ≥ 80 % |",
+             f"| out-of-library: a wrong term presented as the answer | {_frac(rows, 'ool', 'wrong_answer')} | ≤ 10 % |",
+             f"| out-of-library: proposal (or user term) ranked first, affected error −50 % | {_frac(rows, 'ool', 'found')} | ≥ 70 % |",
+             f"| … found by the proposal / by the user term | {_frac(rows, 'ool', 'found_proposal')} / {_frac(rows, 'ool', 'found_user')} | |",
+             f"| … detectable cases (the truth at its true value: affected error −50 %) | {_frac(rows, 'ool', 'detectable')} | |",
+             f"| … found among the detectable (proposal / user term) | {_frac(rows, 'ool', 'found', True)} ({_frac(rows, 'ool', 'found_proposal', True)} / {_frac(rows, 'ool', 'found_user', True)}) | ≥ 70 % |",
+             f"| null sets: a term added | {_frac(rows, 'null', 'null_added')} | 0 % |",
+             f"| added terms whose replay worsens their channel | {worsened} | 0 |"]
+    return "\n".join(lines)
+
+
+def _coefs(fitted: dict, law: str = "") -> str:
+    """Fitted parameters; a proposal's only as its term count and the law's term."""
+    out = []
+    for n, p in fitted.items():
+        if n == PROPOSED:
+            key = law.replace(":", "_")
+            out.append(f"{n} ({len(p)} terms" + (f"; {key}={p[key]:.3g}" if key in p else "")
+                       + ")")
+        else:
+            out.append(f"{n}: " + ", ".join(f"{k}={v:.3g}" for k, v in p.items()))
+    return "; ".join(out) or "-"
+
+
+def _proposed(prop: dict | None) -> str:
+    """The proposal's terms by axis (feature names only)."""
+    if not prop or not prop["file"]:
+        return "-"
+    axes: dict[str, list[str]] = {}
+    for k in list(prop["terms"]) + list(prop.get("joint_terms", {})):
+        ax, feat = k.split(":", 1)
+        axes.setdefault(ax, []).append(feat)
+    return "; ".join(f"{ax}: " + " ".join(f) for ax, f in axes.items())
+
+
+def case_table(rows: list[dict]) -> str:
+    """One line per case: truth, verdicts, added / proposed, coefficients, error."""
+    lines = ["| case | truth | library run: verdict, added (answer?) | proposed | feedback run: "
+             "verdict, added | coefficients (feedback, else library) | affected channel: "
+             "RMSE before → after (lib / fb) |", "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        case, s = Case(**r["case"]), score(r)
+        lib, fb, prop = r["lib"], r.get("fb"), r.get("proposal")
+        added = ",".join(lib["added"]) or "-"
+        ans = " (answer)" if lib["is_answer"] and lib["added"] else ""
+        proposed = _proposed(prop)
+        fbt = "-" if not fb else f"{fb['status']}, {','.join(fb['added']) or '-'}"
+        form = FORM_BY_NAME.get(case.form)
+        coefs = _coefs((fb or lib)["fitted"], form.proposal_feature if form else "")
+        if not math.isnan(s["coef_err"]):
+            coefs += f" [law coef err {_pct(s['coef_err'])}]"
+        ch = s["channel"]
+        err = "-"
+        if ch:
+            rep = (fb or lib)["replay"] if ch in (fb or lib)["replay"] else lib["replay"]
+            b = rep[ch][0]
+            a_lib = lib["replay"][ch][1] if ch in lib["replay"] else b
+            a_fb = fb["replay"][ch][1] if fb and ch in fb["replay"] else b
+            err = f"{ch}: {b:.4g} → {a_lib:.4g} / {a_fb:.4g}"
+        lines.append(f"| {case.tag} | {case.truth} | {lib['status']}, {added}{ans} | {proposed} "
+                     f"| {fbt} | {coefs} | {err} |")
+    return "\n".join(lines)
+
+
+def user_table(rows: list[dict]) -> str:
+    """One line per case with a user term: its rank and whether it was added in the
+    feedback run, its coefficient error, the affected channel's replay RMSE reduction with
+    the feedback run's additions and with the truth at its true value (the best possible)."""
+    lines = ["| case | truth | user term: rank, added | coefficient error | affected channel: "
+             "reduction (feedback run / truth) | found by |", "|---|---|---|---|---|---|"]
+    for r in rows:
+        case, s = Case(**r["case"]), score(r)
+        if case.group != "ool":
+            continue
+        rank = "-" if s["user_rank"] is None else str(s["user_rank"])
+        lines.append(f"| {case.tag} | {case.truth} | {rank}, {'yes' if s['user_added'] else 'no'} "
+                     f"| {_pct(s['coef_err'])} | {s['channel'] or '-'}: {_pct(s['fb_red'])} / "
+                     f"{_pct(s['truth_red'])} | {s['found_by'] or '-'} |")
+    return "\n".join(lines)
