@@ -148,6 +148,18 @@ def _pct(x: float) -> str:
     return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{100 * x:+.0f} %"
 
 
+def progress_line(row: dict) -> str:
+    """One finished case in a line: tag, each run's verdict and additions, the affected
+    channel's replay RMSE change by the library / feedback run, and the seconds taken."""
+    s, lib, fb = score(row), row["lib"], row.get("fb")
+    tag = Case(**row["case"]).tag
+    secs = row.get("synth_s", 0) + row.get("lib_s", 0) + row.get("fb_s", 0)
+    return (f"{tag:34s} lib {lib['status']}: {','.join(lib['added']) or '-'}"
+            f"{' (answer)' if lib['is_answer'] and lib['added'] else ''} | fb "
+            f"{'-' if not fb else fb['status'] + ': ' + (','.join(fb['added']) or '-')} | "
+            f"{s['channel'] or '-'} {_pct(s['lib_red'])} / {_pct(s['fb_red'])} [{secs:.0f} s]")
+
+
 def _frac(rows: list[dict], group: str, key: str, detectable_only: bool = False) -> str:
     sc = [score(r) for r in rows if Case(**r["case"]).group == group]
     if detectable_only:

@@ -67,8 +67,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))   # the helpers below, 
 from ool_forms import (FORM_BY_NAME, FORMS, HIDDEN, KNEES, LIBRARY, MISMATCHES,  # noqa: E402
                        PAIRS, PROPOSED, PROPOSED_PREFIX, QUICK_FORMS, SPEEDS, USER, Case,
                        Form, build_cases, register_forms)
-from ool_scoring import (affected_channel, case_table, figures, score,  # noqa: E402
-                         targets_table, user_table)
+from ool_scoring import (affected_channel, case_table, figures,  # noqa: E402
+                         progress_line, score, targets_table, user_table)
 
 
 
@@ -238,13 +238,7 @@ def main() -> None:
                       f"[{time.perf_counter() - t0:.0f} s]", flush=True)
                 return None
         row = json.loads(res.read_text(encoding="utf-8"))
-        s, lib, fb = score(row), row["lib"], row.get("fb")
-        print(f"{case.tag:34s} lib {lib['status']}: {','.join(lib['added']) or '-'}"
-              f"{' (answer)' if lib['is_answer'] and lib['added'] else ''} | fb "
-              f"{'-' if not fb else fb['status'] + ': ' + (','.join(fb['added']) or '-')} | "
-              f"{s['channel'] or '-'} {_pct(s['lib_red'])} / {_pct(s['fb_red'])} "
-              f"[{row.get('synth_s', 0) + row.get('lib_s', 0) + row.get('fb_s', 0):.0f} s]",
-              flush=True)
+        print(progress_line(row), flush=True)
         return row
 
     with ThreadPoolExecutor(max_workers=max(1, args.workers)) as ex:

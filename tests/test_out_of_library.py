@@ -156,6 +156,12 @@ def test_scores_and_targets_table(ool):
     cases = ool.case_table([found, null])
     assert "intrusion_z: 0.008 → 0.006 / 0.002" in cases and "[law coef err -10 %]" in cases
     assert "| z: v_z |" in cases and "proposed_force (1 terms; z_v_z=-11)" in cases
+    found.update(lib_s=30.4, fb_s=20.0)
+    line = ool.progress_line(found)
+    assert line.startswith("vdamp_m0_s1 ") and "lib missing_effect: cohesion (answer)" in line
+    assert "fb partially_explained: proposed_force" in line
+    assert "intrusion_z +25 % / +75 % [50 s]" in line
+    assert "| fb - |" in ool.progress_line(null) and "[0 s]" in ool.progress_line(null)
 
 
 def test_found_by_whom_and_detectable(ool):
