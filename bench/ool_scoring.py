@@ -181,7 +181,7 @@ def targets_table(rows: list[dict]) -> str:
              f"| out-of-library: a wrong term presented as the answer | {_frac(rows, 'ool', 'wrong_answer')} | ≤ 10 % |",
              f"| out-of-library: proposal (or user term) ranked first, affected error −50 % | {_frac(rows, 'ool', 'found')} | ≥ 70 % |",
              f"| … found by the proposal / by the user term | {_frac(rows, 'ool', 'found_proposal')} / {_frac(rows, 'ool', 'found_user')} | |",
-             f"| … detectable cases (the truth at its true value: affected error −50 %) | {_frac(rows, 'ool', 'detectable')} | |",
+             f"| … detectable cases (the true model: affected error −50 %) | {_frac(rows, 'ool', 'detectable')} | |",
              f"| … found among the detectable (proposal / user term) | {_frac(rows, 'ool', 'found', True)} ({_frac(rows, 'ool', 'found_proposal', True)} / {_frac(rows, 'ool', 'found_user', True)}) | ≥ 70 % |",
              f"| null sets: a term added | {_frac(rows, 'null', 'null_added')} | 0 % |",
              f"| added terms whose replay worsens their channel | {worsened} | 0 |"]
@@ -231,7 +231,9 @@ def case_table(rows: list[dict]) -> str:
         ch = s["channel"]
         err = "-"
         if ch:
-            rep = (fb or lib)["replay"] if ch in (fb or lib)["replay"] else lib["replay"]
+            # the channel may be named by the truth's replay alone (neither run replayed it)
+            rep = next(x for x in ((fb or lib)["replay"], lib["replay"],
+                                   r.get("truth_replay") or {}) if ch in x)
             b = rep[ch][0]
             a_lib = lib["replay"][ch][1] if ch in lib["replay"] else b
             a_fb = fb["replay"][ch][1] if fb and ch in fb["replay"] else b

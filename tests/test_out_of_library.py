@@ -191,6 +191,7 @@ def test_found_by_whom_and_detectable(ool):
              "fb": _run("no_significant_missing_effect", [], {})}
     q = ool.score(quiet)
     assert q["channel"] == "intrusion_z" and q["fb_red"] == 0.0 and not q["found"]
+    assert "| intrusion_z: 0.004 → 0.004 / 0.004 |" in ool.case_table([quiet])
     # a proposal's find
     vd = ool.Case("vdamp_m0_s1", 1, "vdamp", 10.0)
     prop = {"case": vd.__dict__, "lib": _run("missing_effect", ["cohesion"],
