@@ -223,7 +223,31 @@ def drop_diverged_candidates(candidates: CandidateSet, sens: Mapping[str, np.nda
     return candidates.without(list(bad)), tuple(bad.values())
 
 
+def kept_sensitivities(sens: Mapping[str, np.ndarray], computed: CandidateSet,
+                       kept: CandidateSet) -> dict[str, np.ndarray]:
+    """The sensitivity cubes without the columns of the candidates dropped after they were
+    computed (in ``computed``, not in ``kept``: dead, diverged, unassessable).
+
+    Every regression keeps only the rows on which *all* its columns are finite
+    (:class:`.regression.Rows`), so a dropped candidate's cube left in ``sens`` would still
+    take its undefined rows from every other candidate: a user term whose replays diverged
+    in 81 % of the cells, dropped with a warning, cut the rows from 744 to 168 and undid
+    another effect's addition (``docs/validation.md`` §5.3). Nuisance and strength columns
+    (no candidate's) are kept.
+
+    Args:
+        sens: column key → sensitivity cube (W, C, B).
+        computed: the candidate set the cubes were computed for.
+        kept: the candidates still ranked.
+
+    Returns:
+        A new mapping without the dropped candidates' column keys.
+    """
+    gone = {c.key for n, cols in computed.columns.items() if n not in kept.columns for c in cols}
+    return {k: v for k, v in sens.items() if k not in gone}
+
+
 __all__ = ["CALIBRATION", "Column", "candidate_columns", "variant_for", "CandidateSet",
            "build_candidates", "check_sensor_candidates", "dead_candidates",
            "drop_dead_candidates", "diverged_candidates", "drop_diverged_candidates",
-           "MAX_DIVERGED_SHARE"]
+           "kept_sensitivities", "MAX_DIVERGED_SHARE"]

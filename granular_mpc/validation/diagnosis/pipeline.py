@@ -20,7 +20,7 @@ from ..dataformat import load_dataset
 from ..replay.pool import ReplayPool
 from .calibration import calibrate_model
 from .candidates import (build_candidates, check_sensor_candidates, drop_dead_candidates,
-                         drop_diverged_candidates)
+                         drop_diverged_candidates, kept_sensitivities)
 from .coverage import (assess_candidates, calibration_text, can_calibrate,
                        drop_unreadable_sensor_candidates, fixed_calibration, measured_problem,
                        write_coverage)
@@ -105,12 +105,15 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
         t0 = _time.perf_counter()
         res = compute_residuals(problem, cands, cal, pool)
         res = add_strength_sensitivity(problem, cal, res, pool)     # φ_s: tested against
+        computed = cands
         cands, warns = drop_dead_candidates(cands, res.sens, problem.channels)
         cands, diverged = drop_diverged_candidates(cands, res.sens, res.R)
         warns = tuple(warns) + diverged
         cands, coverage = assess_candidates(problem, ds, cands, res, unreadable,
                                             calibration_text(ds), nuisance=cal.nuisance)
         warns = tuple(warns) + coverage.warnings
+        # a dropped candidate's undefined cells must not take rows from the others
+        res = replace(res, sens=kept_sensitivities(res.sens, computed, cands))
         timing["replays"] = _time.perf_counter() - t0
         t0 = _time.perf_counter()
         sd = screening_design(problem, cands, cal.nuisance, res, seed=seed,
