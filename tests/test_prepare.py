@@ -271,6 +271,32 @@ def test_window_features_match_pinocchio_and_finite_differences(windows, biped, 
         np.testing.assert_allclose(w.features["grf_z"], GRF[2], atol=1e-9)
 
 
+def test_window_foot_kinematics_equal_the_row_by_row_computation(dataset, windows, biped):
+    """The foot-kinematics features (computed on arrays of the rows' foot placements) equal
+    the row-by-row computation with the public helpers — patch_points(...).mean(axis=0),
+    foot_pitch, the frame velocity of the mean patch point, the unit heading — to
+    round-off (1e-12), on the smoothed states of the trial."""
+    st = TrialStates(biped, dataset.trials["t1"], list(biped.joint_names), FS, 15,
+                     channels=dataset.channels, refine_touchdowns=False)
+    model, data = biped.model, biped.create_data()
+    for w in windows:
+        fid = biped.foot_frame[w.side]
+        for i, k in enumerate(range(w.row_start, w.row_stop)):
+            pin.forwardKinematics(model, data, st.q(k), st.v(k))
+            oMf = pin.updateFramePlacement(model, data, fid)
+            vel = pin.getFrameVelocity(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+            arm = patch_points(biped, oMf).mean(axis=0) - oMf.translation
+            vc = vel.linear + np.cross(vel.angular, arm)
+            h = oMf.rotation[:2, 0] / np.hypot(*oMf.rotation[:2, 0])
+            f = w.features
+            assert f["pitch"][i] == pytest.approx(foot_pitch(oMf), abs=1e-12)
+            got = np.array([f["vc_x"][i], f["vc_y"][i], f["vc_z"][i]])
+            np.testing.assert_allclose(got, vc, rtol=0, atol=1e-12)
+            np.testing.assert_allclose([f["heading_x"][i], f["heading_y"][i]], h, atol=1e-12)
+            assert f["v_h"][i] == pytest.approx(vc[0] * h[0] + vc[1] * h[1], abs=1e-12)
+            assert f["v_l"][i] == pytest.approx(-vc[0] * h[1] + vc[1] * h[0], abs=1e-12)
+
+
 def test_window_local_frame_is_the_touchdown_point(windows, biped):
     """q0 is the measured configuration shifted by the origin, which lies on the free
     surface under the stance foot's touchdown point (its height: contact point + measured

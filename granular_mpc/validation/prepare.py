@@ -42,7 +42,6 @@ torques (:mod:`.contact_estimation`; ``docs/import.md``). A replay needs
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -342,22 +341,27 @@ def _foot_kinematics(biped: Biped, data: pin.Data, st: "TrialStates", side: str,
     """Per row of [a, b): foot pitch ψ_c [rad], contact-point (material) velocity v_c [m/s]
     in W, its heading-frame components (v_h, v_l, v_z) and the unit heading (hx, hy)."""
     n = b - a
-    pitch = np.zeros(n)
-    lin, ang, arm = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
-    head = np.zeros((n, 2))
+    lin, ang = np.zeros((n, 3)), np.zeros((n, 3))
+    pos, rot = np.zeros((n, 3)), np.zeros((n, 3, 3))
     fid = biped.foot_frame[side]
-    for k in range(n):
-        q, v = st.q(a + k), st.v(a + k)
-        pin.forwardKinematics(biped.model, data, q, v)
+    for k in range(n):                           # Pinocchio per row, the rest on the arrays
+        pin.forwardKinematics(biped.model, data, st.q(a + k), st.v(a + k))
         oMf = pin.updateFramePlacement(biped.model, data, fid)
-        pts = patch_points(biped, oMf)
         vel = pin.getFrameVelocity(biped.model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
         lin[k], ang[k] = vel.linear, vel.angular
-        arm[k] = pts.mean(axis=0) - oMf.translation
-        pitch[k] = foot_pitch(oMf)
-        hx, hy = oMf.rotation[0, 0], oMf.rotation[1, 0]
-        hn = math.hypot(hx, hy) or 1.0
-        head[k] = hx / hn, hy / hn
+        pos[k], rot[k] = oMf.translation, oMf.rotation
+    # foot_pitch, and patch_points(...).mean(axis=0) − p_F (the mean of the slices' lowest
+    # points: base + ȳ e_y) for all rows at once
+    foot = biped.config.foot
+    psi_raw = np.arctan2(-rot[:, 2, 0], rot[:, 2, 2])
+    pitch = -psi_raw
+    psi = np.clip(psi_raw, -foot.half_angle, foot.half_angle)
+    base = (pos + (foot.radius * np.sin(psi))[:, None] * rot[:, :, 0]
+            - (foot.radius * np.cos(psi))[:, None] * rot[:, :, 2])
+    arm = base + float(np.mean(biped.slice_offsets)) * rot[:, :, 1] - pos
+    hn = np.hypot(rot[:, 0, 0], rot[:, 1, 0])
+    hn[hn == 0.0] = 1.0
+    head = np.column_stack([rot[:, 0, 0] / hn, rot[:, 1, 0] / hn])
     vc = lin + np.cross(ang, arm)                # rows: the same products as one by one
     v_h = vc[:, 0] * head[:, 0] + vc[:, 1] * head[:, 1]
     v_l = -vc[:, 0] * head[:, 1] + vc[:, 1] * head[:, 0]

@@ -99,7 +99,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     timing["calibrate"] = _time.perf_counter() - t0
     # a term outside the library, from the force equation error (proposal.py)
     t0 = _time.perf_counter()
-    proposal = propose_terms(problem, cal.theta, seed=seed) if can_calibrate(ds) else None
+    proposal = (propose_terms(problem, cal.theta, seed=seed, dataset=ds)
+                if can_calibrate(ds) else None)
     timing["proposal"] = _time.perf_counter() - t0
     with ReplayPool(cal.replay_model, problem.windows, workers=workers) as pool:
         t0 = _time.perf_counter()

@@ -21,7 +21,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..dataformat import load_dataset
+from ..dataformat import Dataset, load_dataset
 from .features import AXES, FEATURES, ForceSamples, feature, feature_names, force_samples
 from .joint_proposal import joint_effect_names, joint_effect_source, propose_joint_terms
 from .problem import Problem
@@ -78,7 +78,8 @@ NOTE = ("equation error of the foot force on the sinking samples (measured − t
         "It sees only sinking (on rising or resting feet it is extrapolated).")
 
 
-def propose_terms(problem: Problem, theta: Mapping[str, float], *, seed: int = 0) -> Proposal:
+def propose_terms(problem: Problem, theta: Mapping[str, float], *, seed: int = 0,
+                  dataset: Dataset | None = None) -> Proposal:
     """Fit the missing force on the feature library, and the joint torque equation error
     on the joint features (:mod:`.joint_proposal`).
 
@@ -86,10 +87,12 @@ def propose_terms(problem: Problem, theta: Mapping[str, float], *, seed: int = 0
         problem: the diagnosis problem.
         theta: the calibrated parameters (``zeta``; ``phi_s`` if calibrated).
         seed: seed of the stability resamples.
+        dataset: the problem's data set, if the caller has it loaded (None: loaded from
+            ``problem.data_dir``).
     """
     p = _force_proposal(problem, theta, seed=seed)
-    jt, jf, jnote = propose_joint_terms(load_dataset(problem.data_dir), problem.biped,
-                                        problem.sample_rate_hz, seed=seed)
+    ds = dataset if dataset is not None else load_dataset(problem.data_dir)
+    jt, jf, jnote = propose_joint_terms(ds, problem.biped, problem.sample_rate_hz, seed=seed)
     return replace(p, joint_terms=jt, joint_fits=jf, joint_note=jnote)
 
 
