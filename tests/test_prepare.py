@@ -18,7 +18,6 @@ import pytest
 from scipy.signal import savgol_coeffs
 
 from granular_mpc.robot.kinematics import leg_geometry
-from granular_mpc.robot.model import SIDES
 from granular_mpc.rotations import rot_y, rot_z
 from granular_mpc.validation.dataformat import Dataset, DatasetMeta
 from granular_mpc.validation.prepare import (StanceWindow, TrialStates, channel_names,
