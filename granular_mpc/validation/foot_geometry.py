@@ -43,4 +43,20 @@ def foot_pitch(oMf: pin.SE3) -> float:
     return -math.atan2(-R[2, 0], R[2, 2])
 
 
-__all__ = ["sole_angle", "patch_points", "foot_pitch"]
+def foot_pitch_rows(rot: np.ndarray) -> np.ndarray:
+    """:func:`foot_pitch` of the placements' rotations ``rot`` (n, 3, 3), per row [rad]."""
+    return -np.arctan2(-rot[:, 2, 0], rot[:, 2, 2])
+
+
+def contact_point_rows(biped: Biped, pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """``patch_points(...).mean(axis=0)`` — the mean lowest sole point over the slices,
+    the contact point C — for placements given as rows: translations ``pos`` (n, 3) [m]
+    and rotations ``rot`` (n, 3, 3), W; returns (n, 3) [m]."""
+    foot = biped.config.foot
+    psi = np.clip(np.arctan2(-rot[:, 2, 0], rot[:, 2, 2]), -foot.half_angle, foot.half_angle)
+    base = (pos + (foot.radius * np.sin(psi))[:, None] * rot[:, :, 0]
+            - (foot.radius * np.cos(psi))[:, None] * rot[:, :, 2])
+    return base + float(np.mean(biped.slice_offsets)) * rot[:, :, 1]
+
+
+__all__ = ["sole_angle", "patch_points", "foot_pitch", "foot_pitch_rows", "contact_point_rows"]

@@ -58,7 +58,7 @@ from .dataformat import Dataset, stance_phases
 from .dataformat.channels import ChannelGroup, ChannelSet
 from .contact_estimation import estimate_foot_forces, refined_landing
 from .estimation import contact_offsets, estimate_trunk
-from .foot_geometry import foot_pitch, patch_points
+from .foot_geometry import contact_point_rows, foot_pitch, foot_pitch_rows, patch_points
 from .scored_channels import (CHANNEL_UNITS, REPLAY_REQUIRED, SCORED_GROUPS,  # noqa: F401
                               channel_names, channel_unit, check_replayable)
 
@@ -350,15 +350,8 @@ def _foot_kinematics(biped: Biped, data: pin.Data, st: "TrialStates", side: str,
         vel = pin.getFrameVelocity(biped.model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
         lin[k], ang[k] = vel.linear, vel.angular
         pos[k], rot[k] = oMf.translation, oMf.rotation
-    # foot_pitch, and patch_points(...).mean(axis=0) − p_F (the mean of the slices' lowest
-    # points: base + ȳ e_y) for all rows at once
-    foot = biped.config.foot
-    psi_raw = np.arctan2(-rot[:, 2, 0], rot[:, 2, 2])
-    pitch = -psi_raw
-    psi = np.clip(psi_raw, -foot.half_angle, foot.half_angle)
-    base = (pos + (foot.radius * np.sin(psi))[:, None] * rot[:, :, 0]
-            - (foot.radius * np.cos(psi))[:, None] * rot[:, :, 2])
-    arm = base + float(np.mean(biped.slice_offsets)) * rot[:, :, 1] - pos
+    pitch = foot_pitch_rows(rot)
+    arm = contact_point_rows(biped, pos, rot) - pos
     hn = np.hypot(rot[:, 0, 0], rot[:, 1, 0])
     hn[hn == 0.0] = 1.0
     head = np.column_stack([rot[:, 0, 0] / hn, rot[:, 1, 0] / hn])
