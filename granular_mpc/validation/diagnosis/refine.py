@@ -198,16 +198,14 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
         k_ = n_nuis + sum(len(candidates.columns[s]) for s in sel)
         return aicc(float(y_ @ y_), y_.size * d_.n_eff_factor, k_), float(y_ @ y_)
 
+    twins = {t.effect for t in scr.strength_twins}
     while len(selected) < max_effects:
-        contenders = contenders_for(stats, selected, rejected, max_contenders,
-                                    scr.indistinguishable if not selected else (),
-                                    {t.effect for t in scr.strength_twins})
+        pairs = scr.indistinguishable if not selected else ()
+        contenders = contenders_for(stats, selected, rejected, max_contenders, pairs, twins)
         if not contenders:
             break
-        twins = {t.effect for t in scr.strength_twins}
         rivals = {r.effect for r in contenders} - {r.effect for r in contenders_for(
-            stats, selected, rejected, max_contenders,
-            scr.indistinguishable if not selected else (), twins, with_rivals=False)}
+            stats, selected, rejected, max_contenders, pairs, twins, with_rivals=False)}
         prev_vals = _values(fitted, candidates, selected)
         tried = []
         for r in contenders:
