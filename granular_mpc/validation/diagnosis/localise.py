@@ -229,9 +229,6 @@ class LocalisationStage:
         theta_linear: θ of that linear re-fit.
         measurement_noise: channel → σ_meas of one sample (:func:`measurement_noise`),
             used by the practical-size test of both localisations.
-        sigma_after: channel → stance-to-stance scatter σ_c of the final model's own
-            residual, the unit of the ``after`` localisation (channel units; empty when
-            nothing was added: ``after`` is ``before``).
     """
 
     before: Localization
@@ -240,7 +237,6 @@ class LocalisationStage:
     R_after: np.ndarray
     theta_linear: Mapping[str, float]
     measurement_noise: Mapping[str, float] = field(default_factory=dict)
-    sigma_after: Mapping[str, float] = field(default_factory=dict)
 
 
 def localise_models(problem: Problem, res: Residuals, regression: Regression,
@@ -270,9 +266,9 @@ def localise_models(problem: Problem, res: Residuals, regression: Regression,
     if final_preds is None:
         return LocalisationStage(before, before, R_cal, R_cal, theta_lin, noise)
     R_after = residual_cube(problem.windows, final_preds, problem.channels, problem.edges)
-    after, sigma_after = localize_final(problem.windows, R_after, problem.channels,
-                                        problem.edges, model_df=n_fitted, seed=seed, noise=noise)
-    return LocalisationStage(before, after, R_cal, R_after, theta_lin, noise, sigma_after)
+    after, _ = localize_final(problem.windows, R_after, problem.channels, problem.edges,
+                              model_df=n_fitted, seed=seed, noise=noise)
+    return LocalisationStage(before, after, R_cal, R_after, theta_lin, noise)
 
 
 def localize_final(windows: Sequence[StanceWindow], R_after: np.ndarray,
