@@ -197,3 +197,18 @@ def test_a_models_folder_that_does_not_exist_is_warned_about_by_name(tmp_path, m
     monkeypatch.setenv("GRANULAR_MPC_MODELS", str(missing))
     with pytest.warns(UserWarning, match="no-such-folder"):
         models_dirs()
+
+
+def test_every_mpc_qp_setting_can_be_chosen_from_yaml():
+    """``controller.mpc.qp`` accepts exactly the names of the MPC's QP settings (a setting
+    that the config rejects cannot be chosen; ``scaled_rows`` once could not) and rejects
+    another name with the key in the message."""
+    from pydantic import ValidationError
+
+    from granular_mpc.config import MPCConfig
+    from granular_mpc.control.mpc import QP_SETTINGS
+
+    for name in QP_SETTINGS:
+        assert MPCConfig(qp=name).qp == name
+    with pytest.raises(ValidationError, match="qp"):
+        MPCConfig(qp="fastest")
