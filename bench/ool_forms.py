@@ -178,9 +178,15 @@ QUICK_FORMS = ("vdamp", "v2drag", "hard_layer", "sole_coulomb", "stiction", "tor
 #: null sets: the plant's terrain unlike the model file (φ_s 38°, layer 0.12 m, k 2e5 N/m)
 MISMATCHES = ("terrain.phi_s_deg=33", "terrain.layer_depth=0.04",
               "terrain.contact_stiffness=1e5")
-#: pairs: a library effect (its main parameter) + a form at its first magnitude
+#: pairs: a library effect (its main parameter) + a form at its first magnitude. The first
+#: two since session 20; the last two (session 23) pair a library effect with a form that
+#: is detectable alone (its true model cuts its channel by ≥ 50 % in ≥ 5 of 6 single
+#: cases) and acts on other channels than the library effect — the encoder offset of the
+#: second pair is undetectable alone (0 of 6), so that pair cannot be both found.
 PAIRS = (("cohesion:suction=2000", "suction", "vdamp"),
-         ("joint_friction:coulomb=0.1,viscous=0.02", "coulomb", "encoder_offset"))
+         ("joint_friction:coulomb=0.1,viscous=0.02", "coulomb", "encoder_offset"),
+         ("depth_hardening:n=1.5", "n", "stiction"),
+         ("force_sensor_bias:bias_z=6", "bias_z", "knee_spring"))
 
 
 def _wrap(form: Form) -> Callable:
