@@ -113,10 +113,29 @@ def score(row: dict) -> dict:
     return out
 
 
+def pair_form_detectable(rows: list[dict]) -> dict[str, bool]:
+    """Pair tag → whether its form is detectable *alone*: the single case of the same form,
+    magnitude and seed (``score(...)["detectable"]``). A pair's own truth replay cannot
+    tell: its affected channel is also moved by the library partner (joint friction cuts
+    q_left_knee by 85 % whatever the encoder offset does). Pairs without that single case
+    in ``rows`` are left out."""
+    single = {(c.form, c.magnitude, c.seed): score(r)["detectable"]
+              for r in rows for c in [Case(**r["case"])] if c.group == "ool"}
+    out = {}
+    for r in rows:
+        c = Case(**r["case"])
+        d = single.get((c.form, c.magnitude, c.seed)) if c.group == "pair" else None
+        if isinstance(d, bool):
+            out[c.tag] = d
+    return out
+
+
 def figures(rows: list[dict]) -> dict:
     sc = [(Case(**r["case"]), score(r)) for r in rows]
     ool = [s for c, s in sc if c.group in ("ool", "pair")]
     pairs = [s for c, s in sc if c.group == "pair"]
+    form_det = pair_form_detectable(rows)
+    pairs_det = [s for c, s in sc if c.group == "pair" and form_det.get(c.tag) is True]
     nulls = [s for c, s in sc if c.group == "null"]
     single = [s for c, s in sc if c.group == "ool"]
     detectable = [s for s in single if s["detectable"] is True]
@@ -135,8 +154,7 @@ def figures(rows: list[dict]) -> dict:
         "ool_found_by_proposal_rate_detectable": rate(detectable, "found_proposal"),
         "ool_found_by_user_term_rate_detectable": rate(detectable, "found_user"),
         "pair_both_found_rate": rate(pairs, "both_found"),
-        "pair_both_found_rate_detectable": rate([s for s in pairs if s["detectable"] is True],
-                                                "both_found"),
+        "pair_both_found_rate_detectable": rate(pairs_det, "both_found"),
         "pair_rank1_rate": rate(pairs, "partner_rank1"),
         "pair_coef_within_15pct_rate": (sum(abs(p["partner_coef_err"]) <= 0.15 for p in pairs)
                                         / len(pairs) if pairs else math.nan),
@@ -175,12 +193,16 @@ def targets_table(rows: list[dict]) -> str:
     pairs = [score(r) for r in rows if Case(**r["case"]).group == "pair"]
     within = sum(abs(p["partner_coef_err"]) <= 0.15 for p in pairs)
     worsened = sum(score(r)["worsened"] for r in rows)
+    form_det = pair_form_detectable(rows)
+    det_rows = [r for r in rows if form_det.get(Case(**r["case"]).tag) is True]
+    pairs_det = (f"{sum(score(r)['both_found'] for r in det_rows)}/{len(det_rows)}"
+                 if det_rows else "n/a")
     lines = ["| figure | this run | target |", "|---|---|---|",
              f"| library effect (pair member) ranked first | {_frac(rows, 'pair', 'partner_rank1')} | ≥ 90 % |",
              f"| main coefficient within 15 % (pair member) | {within}/{len(pairs)} | ≥ 85 % |"
              if pairs else "| main coefficient within 15 % (pair member) | n/a | ≥ 85 % |",
              f"| both effects of a pair found | {_frac(rows, 'pair', 'both_found')} | ≥ 80 % |",
-             f"| … among the pairs whose form is detectable (the true pair: its channel −50 %) | {_frac(rows, 'pair', 'both_found', True)} | ≥ 80 % |",
+             f"| … among the pairs whose form is detectable alone (its single case, same seed) | {pairs_det} | ≥ 80 % |",
              f"| out-of-library: a wrong term presented as the answer | {_frac(rows, 'ool', 'wrong_answer')} | ≤ 10 % |",
              f"| out-of-library: proposal (or user term) ranked first, affected error −50 % | {_frac(rows, 'ool', 'found')} | ≥ 70 % |",
              f"| … found by the proposal / by the user term | {_frac(rows, 'ool', 'found_proposal')} / {_frac(rows, 'ool', 'found_user')} | |",

@@ -45,7 +45,7 @@ Figures (``name: value``): ool_wrong_answer_rate, ool_found_rate (proposal or us
 ranked first in the feedback run and the affected channel's replay RMSE −50 %),
 ool_found_by_proposal_rate, ool_found_by_user_term_rate (the same split by who found it),
 ool_detectable_rate, and ool_found_rate_detectable (and its split) over the detectable cases,
-pair_both_found_rate (and pair_both_found_rate_detectable over the pairs whose form the true pair makes detectable), pair_rank1_rate, pair_coef_within_15pct_rate, null_added_rate,
+pair_both_found_rate (and pair_both_found_rate_detectable over the pairs whose form is detectable alone, :func:`ool_scoring.pair_form_detectable`), pair_rank1_rate, pair_coef_within_15pct_rate, null_added_rate,
 added_worsening (added terms whose replay worsens a channel they are credited with),
 cases, null_cases, pair_cases. Kept apart from ``bench/recovery.py`` (the library's own
 recovery study). The forms and cases are in ``bench/ool_forms.py``, the scoring and
