@@ -107,7 +107,12 @@ def score(row: dict) -> dict:
         fit = lib["fitted"].get(name, {}).get(case.partner_param)
         out["partner_rank1"] = lib["rank1"] == name and lib["rank1_added"]
         out["partner_coef_err"] = (fit - true) / true if fit is not None else math.nan
-        out["both_found"] = name in lib["added"] and bool(found_name)
+        # both found: the final diagnosis (the feedback run, else the library run) adds
+        # the library partner and the form's term (the user term or a proposal); no rank
+        # is asked of either (one of the two is second whatever happens)
+        final = fb or lib
+        term = any(a == user or a.startswith(PROPOSED_PREFIX) for a in final["added"])
+        out["both_found"] = name in final["added"] and term
     out["null_added"] = bool(lib["added"]) if case.mismatch else False
     out["worsened"] = len(lib["worsened"]) + (len(fb["worsened"]) if fb else 0)
     return out

@@ -262,6 +262,50 @@ def test_a_term_whose_replays_worsen_its_channel_is_reported_not_added():
     assert not unphys.accepted and "wrong side" in unphys.reasons[0]
 
 
+def _secondary_windows(secondary_after):
+    """12 stances of 40 samples: channel ``a`` (σ 1) is the term's primary channel (its
+    error falls 10 → 6); channel ``b`` (σ 0.01, measured 0) is predicted 0.05 before the
+    term and ``secondary_after(w)`` after it in stance w."""
+    from types import SimpleNamespace
+
+    n = 40
+    rng = np.random.default_rng(3)
+    ws, before, after = [], [], []
+    for w in range(12):
+        meas = {"a": 100 + rng.normal(0, 1, n), "b": np.zeros(n)}
+        ws.append(SimpleNamespace(meas=meas))
+        before.append({"a": meas["a"] - 10.0, "b": np.full(n, 0.05)})
+        after.append({"a": meas["a"] - 6.0, "b": np.full(n, secondary_after(w))})
+    return ws, before, after
+
+
+def test_a_secondary_channel_blocks_a_term_only_when_its_rise_is_significant():
+    """The primary channel must improve; a secondary credited channel blocks the term only
+    when the stance-by-stance rise of its squared error is significant (paired t ≥ RISE_T).
+    A +3 % rise that half the stances contradict (t ≈ 0.1) does not block; a rise in every
+    stance does. The t-statistic equals scipy's paired t-test of the per-stance SSEs."""
+    from scipy.stats import ttest_rel
+
+    from granular_mpc.validation.diagnosis.acceptance import RISE_T, judge, rise_t
+
+    sigma = {"a": 1.0, "b": 0.01}
+    info = effect_info("inertial_drag")
+    ws, before, after = _secondary_windows(lambda w: 0.02 if w % 2 else 0.07)
+    acc = judge(ws, ["a", "b"], sigma, info, {"c_d": 2.0}, before, after)
+    assert list(acc.credited_channels) == ["a", "b"]
+    b = acc.credited_channels["b"]
+    assert b.after > b.before and -0.05 < b.reduction < 0       # a small rise
+    assert b.rise_t < RISE_T and acc.accepted, acc.reasons
+    sse = [[float(np.sum((w.meas["b"] - x["b"]) ** 2)) for w, x in zip(ws, xs)]
+           for xs in (after, before)]
+    assert rise_t(ws, before, after, "b") == pytest.approx(ttest_rel(*sse).statistic, rel=1e-9)
+
+    ws, before, after = _secondary_windows(lambda w: 0.08 + 0.005 * (w % 3))
+    acc = judge(ws, ["a", "b"], sigma, info, {"c_d": 2.0}, before, after)
+    assert "b" in acc.credited_channels and acc.credited_channels["b"].rise_t >= RISE_T
+    assert not acc.accepted and "b" in acc.reasons[0] and "t =" in acc.reasons[0]
+
+
 def test_structure_left_after_an_addition_is_partially_explained():
     from granular_mpc.validation.diagnosis import VerdictInputs, decide, remaining_cells
     from granular_mpc.validation.diagnosis.localization_records import Cell, Localization

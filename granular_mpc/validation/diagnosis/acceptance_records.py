@@ -11,12 +11,16 @@ from .records import OMIT_EMPTY, Record
 
 @dataclass(frozen=True)
 class ChannelChange(Record):
-    """One channel's error before and after the added effects (channel units)."""
+    """One channel's error before and after the added effects (channel units).
+
+    ``rise_t`` (acceptance only): the paired t-statistic of the rise of the stance-by-stance
+    squared error, after − before (positive: worse); None where not computed."""
 
     before: float
     after: float
     reduction: float
     unit: str
+    rise_t: float | None = field(default=None, metadata=OMIT_EMPTY)
 
 
 @dataclass(frozen=True)

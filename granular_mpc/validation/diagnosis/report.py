@@ -239,6 +239,8 @@ def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
                   "coefficients | why not added |", "|---|---|---|---|---|"]
         for a in d.acceptance:
             ch = ", ".join(f"{c} {x.before:.3g} → {x.after:.3g} {x.unit}"
+                           + (f" (rise t = {x.rise_t:.1f})"
+                              if x.rise_t is not None and x.after > x.before else "")
                            for c, x in a.credited_channels.items()) or "–"
             co = "; ".join(f"{k.text} ({k.status})" if k.status != "ok" else k.text
                            for k in a.coefficients) or "–"
