@@ -3,6 +3,7 @@
     python bench/recovery.py [--seeds 1 2 3] [--levels 0.5 1.0] [--effects NAME:k=v …]
                              [--nulls 10] [--mismatch KEY=VALUE …] [--steps 9] [--out DIR [--reuse]] [--json PATH] [--quick]
     python bench/recovery.py --workbench [--out DIR] [--json PATH]
+    python bench/recovery.py --retab STUDY.json DIR [--retab STUDY.json DIR …] [--json PATH]
 
 For every hidden effect and seed, one plant run (``synth``, no noise: 5 speeds × ``steps``
 stances) is turned into one data set per noise level (``noisy_copy``, the realistic sensor
@@ -17,7 +18,16 @@ model at that level) and diagnosed with the whole effects library as candidates.
 * ``channel`` / ``heldout_red`` — the channel whose held-out RMSE (trial-grouped CV,
   stance by stance) the added effect reduces most, and that reduction;
 * ``replay_red`` — the same channel's in-sample replay RMSE reduction (all stances replayed
-  with the fitted effect).
+  with the fitted effect);
+* ``signal`` / ``signal_channel`` — how far the hidden effect moves its channel in units of
+  that channel's noise: max over channels of s_c / σ_c, s_c the replay RMSE the true effect
+  explains on the noise-free data, σ_c the std of (noisy − clean) over stance rows
+  (``bench/recovery_signal.py``; our reading of issue 11's "moves its channel ≥ 2 σ" is
+  ``signal`` ≥ 2); two secondary readings: ``signal_moved`` / ``signal_moved_channel`` —
+  max_c m_c / σ_c, m_c the RMS change of the replay's prediction of channel c by the true
+  effect; ``signal_floor`` / ``signal_floor_channel`` — s_c over sqrt(after_c² + σ_c²), the
+  noise-free replay's error floor with the true effect and the noise together. Computed
+  from the data sets only (cached beside them), one noise-free replay per plant run.
 
 Null test: data sets with no hidden effect (``--nulls`` seeds × levels); the figure is the
 share of them where nothing was added. Parameter mismatch (``--mismatch KEY=VALUE``, by
@@ -26,9 +36,18 @@ with the other value, no effect; the figure is the share calibrated within 10 % 
 nothing added.
 
 Summary lines (``name: value unit``): rank1_rate, coef_within_15pct_rate,
+rank1_rate_signal2 and coef_within_15pct_rate_signal2 (the same over the cases with
+``signal`` ≥ 2 — issue 11's population; the all-cases figures stay beside them),
+rank1_rate_moved2 and coef_within_15pct_rate_moved2 (over ``signal_moved`` ≥ 2),
 heldout_reduction_ge_50pct_rate, null_nothing_added_rate, mismatch_calibrated_rate,
-cases, null_cases, mismatch_cases. ``--quick``: 2 effects ×
+cases, cases_signal2, cases_moved2, null_cases, mismatch_cases. ``--quick``: 2 effects ×
 1 seed × 1 level + 1 null.
+
+``--retab STUDY.json DIR`` (repeatable): re-tabulate a stored study without synthesising or
+diagnosing — the rows of its summary JSON, the signal from the data sets in DIR
+(``<effect>_s<seed>_clean`` and ``<effect>_s<seed>_n<level>``; caches are written there, so
+work on a copy). Prints the per-case table and the figures per study and over all of them;
+``--json`` writes ``figures`` (all studies), ``studies`` (per study) and ``rows``.
 
 ``--workbench [--out DIR]``: the held-out threshold study of the test suite
 (docs/testing.md). The workbench data sets of tests/workbench.py are made again with the
@@ -41,9 +60,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import tempfile
 import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))   # the helper below, when imported
+
+from recovery_signal import SIGNAL_THRESHOLD, case_signal  # noqa: E402
 
 DEFAULT_EFFECTS = [
     "inertial_drag:c_d=4",
@@ -196,8 +220,6 @@ def _validate_figures(noisy: Path, out: Path) -> dict:
 
 def heldout_study(out: Path | None, json_path: Path | None) -> dict:
     """Print (and return) every asserted figure on the held-out workbench data sets."""
-    import sys
-
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
     import workbench as wb
     from granular_mpc.validation.synth import noisy_copy
@@ -228,6 +250,115 @@ def heldout_study(out: Path | None, json_path: Path | None) -> dict:
     return results
 
 
+def _rate(rs: list[dict], f) -> float:
+    return sum(1 for r in rs if f(r)) / len(rs) if rs else float("nan")
+
+
+def _within_15pct(r: dict) -> bool:
+    return r["coef_err"] is not None and abs(r["coef_err"]) <= 0.15
+
+
+def study_figures(rows: list[dict]) -> dict:
+    """The summary figures of a study's rows (all effect cases, and those whose effect
+    moves its channel ≥ 2 σ: ``signal`` ≥ 2, see ``bench/recovery_signal.py``)."""
+    eff = [r for r in rows if r["effect"] != "none" and not r["effect"].startswith("mismatch")]
+    nul = [r for r in rows if r["effect"] == "none"]
+    mis = [r for r in rows if r["effect"].startswith("mismatch")]
+    sig = [r for r in eff if (r.get("signal") or 0.0) >= SIGNAL_THRESHOLD]
+    moved = [r for r in eff if (r.get("signal_moved") or 0.0) >= SIGNAL_THRESHOLD]
+    return {
+        "rank1_rate": _rate(eff, lambda r: r["rank"] == 1),
+        "coef_within_15pct_rate": _rate(eff, _within_15pct),
+        "rank1_rate_signal2": _rate(sig, lambda r: r["rank"] == 1),
+        "coef_within_15pct_rate_signal2": _rate(sig, _within_15pct),
+        "rank1_rate_moved2": _rate(moved, lambda r: r["rank"] == 1),
+        "coef_within_15pct_rate_moved2": _rate(moved, _within_15pct),
+        "heldout_reduction_ge_50pct_rate": _rate(eff, lambda r: (r["heldout_red"] or 0) >= 0.5),
+        "null_nothing_added_rate": _rate(nul, lambda r: r["nothing_added"]),
+        # nothing missing, so no structure either (verdict no_significant_missing_effect)
+        "null_no_structure_rate": _rate(nul, lambda r: r["status"]
+                                        == "no_significant_missing_effect"),
+        "mismatch_calibrated_rate": _rate(mis, lambda r: r["nothing_added"]
+                                          and abs(r["coef_err"]) <= 0.10),
+        "cases": len(eff), "cases_signal2": len(sig), "cases_moved2": len(moved),
+        "null_cases": len(nul),
+        "mismatch_cases": len(mis),
+    }
+
+
+def add_signal(row: dict, root: Path) -> dict:
+    """Put the case's ``signal`` (max_c s_c / σ_c), ``signal_channel``, ``signal_moved`` /
+    ``signal_moved_channel`` (max_c m_c / σ_c) and ``signal_floor`` / ``signal_floor_channel``
+    (s_c over the noise-free replay's floor and the noise together) into an effect row, from
+    ``<tag>_clean`` and ``<tag>_n<level>`` in ``root`` (``bench/recovery_signal.py``; cached
+    there; no diagnosis). Null and mismatch rows get None."""
+    effect = row["effect"]
+    if effect == "none" or effect.startswith("mismatch"):
+        row.update(signal=None, signal_channel=None, signal_moved=None,
+                   signal_moved_channel=None, signal_floor=None, signal_floor_channel=None)
+        return row
+    tag = f"{effect.split(':')[0]}_s{row['seed']}"
+    cs = case_signal(root, tag, row["noise"], effect, row["seed"])
+    row.update(signal=cs.signal.value, signal_channel=cs.signal.channel,
+               signal_moved=cs.moved.value, signal_moved_channel=cs.moved.channel,
+               signal_floor=cs.floor.value, signal_floor_channel=cs.floor.channel)
+    return row
+
+
+def _pct(v) -> str:
+    return "-" if v is None else format(v, "+.1%")
+
+
+def signal_table(rows: list[dict]) -> str:
+    """The per-case table (markdown) of effect rows carrying a signal."""
+    lines = ["| study | effect | seed | noise | signal | channel | moved | channel "
+             "| over floor | channel | rank | added | coef_err |", "|" + "---|" * 13]
+    for r in rows:
+        if r.get("signal") is None:
+            continue
+        lines.append(f"| {r.get('study', '')} | `{r['effect']}` | {r['seed']} | {r['noise']:g} "
+                     f"| {r['signal']:.1f} | {r['signal_channel']} | {r['signal_moved']:.1f} "
+                     f"| {r['signal_moved_channel']} | {r['signal_floor']:.2f} "
+                     f"| {r['signal_floor_channel']} | {r['rank']} | {r['added']} "
+                     f"| {_pct(r['coef_err'])} |")
+    return "\n".join(lines)
+
+
+def retabulate(studies: list[tuple[Path, Path]], json_path: Path | None) -> dict:
+    """Re-tabulate stored studies without diagnosing: each (summary JSON, data folder) pair's
+    rows get their signal (:func:`add_signal`); prints the per-case table and the figures per
+    study and over all of them."""
+    all_rows: list[dict] = []
+    per_study = {}
+    for summary, root in studies:
+        name = summary.stem
+        rows = json.loads(summary.read_text(encoding="utf-8"))["rows"]
+        for r in rows:
+            r["study"] = name
+            add_signal(r, root)
+            if r["signal"] is not None:
+                print(f"{name:12s} {r['effect']:42s} seed {r['seed']:3d} noise {r['noise']:3.1f}"
+                      f"  signal {r['signal']:6.1f} ({r['signal_channel']})  moved "
+                      f"{r['signal_moved']:6.1f} ({r['signal_moved_channel']})  floor "
+                      f"{r['signal_floor']:5.2f} ({r['signal_floor_channel']})  rank "
+                      f"{r['rank']}  added {r['added']}  coef_err {_pct(r['coef_err'])}",
+                      flush=True)
+        per_study[name] = study_figures(rows)
+        all_rows += rows
+    combined = study_figures(all_rows)
+    print(signal_table(all_rows))
+    for name, figs in [*per_study.items(), ("all", combined)]:
+        for k in ("rank1_rate", "coef_within_15pct_rate", "cases", "rank1_rate_signal2",
+                  "coef_within_15pct_rate_signal2", "cases_signal2", "rank1_rate_moved2",
+                  "coef_within_15pct_rate_moved2", "cases_moved2"):
+            v = figs[k]
+            print(f"{name} {k}: {v:.3g}" if isinstance(v, float) else f"{name} {k}: {v}")
+    out = {"figures": combined, "studies": per_study, "rows": all_rows}
+    if json_path:
+        json_path.write_text(json.dumps(out, indent=1, default=str), encoding="utf-8")
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
@@ -244,7 +375,13 @@ def main() -> None:
                     help="held-out threshold study of the test suite's workbench data sets")
     ap.add_argument("--reuse", action="store_true",
                     help="with --out: reuse data sets already there (re-diagnose only)")
+    ap.add_argument("--retab", nargs=2, action="append", type=Path, metavar=("JSON", "DIR"),
+                    help="re-tabulate a stored study (its summary JSON and data folder) with "
+                         "the signal per case, without diagnosing; repeatable")
     args = ap.parse_args()
+    if args.retab:
+        retabulate(args.retab, args.json)
+        return
     if args.workbench:
         heldout_study(args.out, args.json)
         return
@@ -275,33 +412,16 @@ def main() -> None:
             row = run_case(data, effect, root / f"{tag}_n{level:g}_diag", seed, mismatch)
             row.update(effect=effect or (f"mismatch {mismatch}" if mismatch else "none"),
                        seed=seed, noise=level)
+            add_signal(row, root)
             rows.append(row)
             print(f"{row['effect']:42s} seed {seed:3d} noise {level:3.1f}  rank {row['rank']}  "
                   f"added {row['added']:20s} coef {row['coef']} (true {row['true']}, err "
                   f"{'-' if row['coef_err'] is None else format(row['coef_err'], '+.1%')})  "
                   f"{row['channel']}: held-out {'-' if row['heldout_red'] is None else format(row['heldout_red'], '.0%')}"
                   f" replay {'-' if row['replay_red'] is None else format(row['replay_red'], '.0%')}"
+                  f"  signal {'-' if row['signal'] is None else format(row['signal'], '.1f')}"
                   f"  {row['status']}  [{row['diagnose_s']:.0f} s]", flush=True)
-    eff = [r for r in rows if r["effect"] != "none" and not r["effect"].startswith("mismatch")]
-    nul = [r for r in rows if r["effect"] == "none"]
-    mis = [r for r in rows if r["effect"].startswith("mismatch")]
-
-    def rate(rs, f):
-        return sum(1 for r in rs if f(r)) / len(rs) if rs else float("nan")
-
-    figures = {
-        "rank1_rate": rate(eff, lambda r: r["rank"] == 1),
-        "coef_within_15pct_rate": rate(eff, lambda r: r["coef_err"] is not None
-                                       and abs(r["coef_err"]) <= 0.15),
-        "heldout_reduction_ge_50pct_rate": rate(eff, lambda r: (r["heldout_red"] or 0) >= 0.5),
-        "null_nothing_added_rate": rate(nul, lambda r: r["nothing_added"]),
-        # nothing missing, so no structure either (verdict no_significant_missing_effect)
-        "null_no_structure_rate": rate(nul, lambda r: r["status"]
-                                       == "no_significant_missing_effect"),
-        "mismatch_calibrated_rate": rate(mis, lambda r: r["nothing_added"]
-                                         and abs(r["coef_err"]) <= 0.10),
-        "cases": len(eff), "null_cases": len(nul), "mismatch_cases": len(mis),
-    }
+    figures = study_figures(rows)
     for k, v in figures.items():
         print(f"{k}: {v:.3g}" if isinstance(v, float) else f"{k}: {v}")
     if args.json:
