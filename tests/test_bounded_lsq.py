@@ -6,8 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.optimize import lsq_linear
+from threadpoolctl import threadpool_info
 
-from granular_mpc.validation.diagnosis.bounded_lsq import ReducedSystem, bvls
+from granular_mpc.validation.diagnosis.bounded_lsq import (ReducedSystem, bvls, lstsq_solution,
+                                                          one_blas_thread)
 
 
 def _reference(X, y, lb, ub):
@@ -96,3 +98,29 @@ def test_repeated_fit_is_the_first_fit():
     assert np.array_equal(b2, b0) and r2 == r0 and not np.any(b2 == 99.0)
     b3, _ = memo.fit(cols, lb, np.array([np.inf, 0.0, 5.0]))
     assert b3[2] > 2.5                    # a new bound: a new fit (β_4 ≈ 3 unbounded)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_lstsq_solution_is_numpys_lstsq_bit_for_bit(seed):
+    rng = np.random.default_rng(700 + seed)
+    for t in range(150):
+        m, n = int(rng.integers(1, 60)), int(rng.integers(1, 30))
+        A = rng.normal(size=(m, n)) * rng.uniform(1e-4, 1e4, size=n)
+        if t % 4 == 0 and n > 2:                  # rank deficient: minimum norm
+            A[:, 1] = 3.0 * A[:, 0]
+        if t % 5 == 0:                            # a non-contiguous view
+            A = A[:, ::-1]
+        b = rng.normal(size=m) * rng.uniform(1e-3, 1e3)
+        rcond = -1.0 if t % 2 else np.finfo(float).eps * max(m, n)
+        assert np.array_equal(lstsq_solution(A, b, rcond),
+                              np.linalg.lstsq(A, b, rcond=rcond)[0])
+
+
+def test_one_blas_thread_limits_and_restores_the_blas_threads():
+    def blas_threads():
+        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+    before = blas_threads()
+    with one_blas_thread():
+        assert all(n == 1 for n in blas_threads())
+    assert blas_threads() == before

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from granular_mpc.validation.diagnosis.cubes import bin_means
+from granular_mpc.validation.diagnosis.cubes import bin_means, cube
 
 
 def _reference(phase, values, channels, edges):
@@ -53,3 +53,26 @@ def test_bin_means_without_channels_is_empty():
     out = bin_means(SimpleNamespace(phase=np.linspace(0, 100, 30)), {}, [],
                     np.linspace(0, 100, 11))
     assert out.shape == (0, 10)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_cube_is_bit_identical_to_bin_means_per_window(seed):
+    rng = np.random.default_rng(100 + seed)
+    edges = np.linspace(0.0, 100.0, int(rng.integers(2, 21)) + 1)
+    channels = [f"c{i}" for i in range(int(rng.integers(1, 9)))]
+    windows, values = [], []
+    for i in range(int(rng.integers(1, 30))):
+        n = int(rng.integers(1, 300))
+        phase = np.sort(rng.uniform(-5.0, 105.0, n))
+        if i % 3 == 1:
+            phase = rng.permutation(phase)
+        vals = {ch: rng.normal(rng.uniform(-1e3, 1e3), rng.uniform(1e-3, 1e3), n)
+                for ch in channels}
+        if i % 5 == 2:                           # a window with a missing sample
+            vals[channels[0]][int(rng.integers(0, n))] = np.nan
+        windows.append(SimpleNamespace(phase=phase))
+        values.append(vals)
+    got = cube(windows, values, channels, edges)
+    ref = np.array([bin_means(w, v, channels, edges) for w, v in zip(windows, values)])
+    assert got.shape == ref.shape
+    assert np.array_equal(got, ref, equal_nan=True)

@@ -6,10 +6,12 @@ import math
 
 import numpy as np
 import pytest
+from scipy.stats import rankdata, spearmanr
 
 from granular_mpc.validation.diagnosis.cubes import group_keys
-from granular_mpc.validation.diagnosis.localise import (localize, localize_final,
-                                                        measurement_noise, practical_floor)
+from granular_mpc.validation.diagnosis.localise import (average_ranks, localize, localize_final,
+                                                        measurement_noise, practical_floor,
+                                                        spearman)
 from granular_mpc.validation.diagnosis.residuals import channel_sigma
 from granular_mpc.validation.prepare import StanceWindow
 
@@ -117,3 +119,18 @@ def test_final_model_is_judged_against_its_own_scatter():
     clean, _ = localize_final(ws, rng.normal(0.0, 0.4e-3, (W, 1, 10)), ["a"], edges,
                               noise=noise)
     assert clean.n_major_cells == 0
+
+
+def test_spearman_is_scipys_spearmanr_bit_for_bit():
+    rng = np.random.default_rng(11)
+    for t in range(200):
+        n = int(rng.integers(10, 300))
+        x = rng.normal(size=n)
+        y = rng.normal(size=n) + 0.3 * x
+        if t % 3 == 0:                            # ties
+            x = np.round(x, 1)
+        if t % 5 == 0:
+            y = np.round(y)
+        ref = spearmanr(x, y)
+        assert spearman(x, y) == (float(ref.statistic), float(ref.pvalue))
+        assert np.array_equal(average_ranks(x), rankdata(x))

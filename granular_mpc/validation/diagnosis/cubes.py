@@ -24,15 +24,13 @@ def bin_means(w: StanceWindow, values: Mapping[str, np.ndarray], channels: Seque
     without non-finite values at once.
     """
     B = len(edges) - 1
-    b = np.clip(np.searchsorted(edges, w.phase, side="right") - 1, 0, B - 1)
     out = np.full((len(channels), B), np.nan)
     if not len(channels):
         return out
     V = np.array([np.asarray(values[ch], dtype=float) for ch in channels], dtype=float)
-    if b.size > 1 and np.any(b[1:] < b[:-1]):
-        order = np.argsort(b, kind="stable")
-        V, b = V[:, order], b[order]
-    bounds = np.searchsorted(b, np.arange(B + 1), side="left")
+    order, bounds = _bin_order(w, edges)
+    if order is not None:
+        V = V[:, order]
     finite = np.isfinite(V)
     clean = finite.all(axis=1)
     if clean.all():
@@ -56,23 +54,83 @@ def bin_means(w: StanceWindow, values: Mapping[str, np.ndarray], channels: Seque
     return out
 
 
+def _bin_order(w: StanceWindow, edges: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+    """(stable order that sorts the window's samples by phase bin, or None when they are
+    already in bin order; the B + 1 run bounds of the bins in that order)."""
+    B = len(edges) - 1
+    phase = np.asarray(w.phase)
+    if phase.size < 2 or (phase[1:] >= phase[:-1]).all():
+        # phases in order (and none NaN): bin k ≥ 1 starts at the first phase ≥ edges[k]
+        bounds = np.empty(B + 1, dtype=np.intp)
+        bounds[0], bounds[B] = 0, phase.size
+        bounds[1:B] = np.searchsorted(phase, edges[1:B], side="left")
+        return None, bounds
+    b = np.clip(np.searchsorted(edges, phase, side="right") - 1, 0, B - 1)
+    order = None
+    if np.any(b[1:] < b[:-1]):
+        order = np.argsort(b, kind="stable")
+        b = b[order]
+    return order, np.searchsorted(b, np.arange(B + 1), side="left")
+
+
+def cube(windows: Sequence[StanceWindow], values: Sequence[Mapping[str, np.ndarray]],
+         channels: Sequence[str], edges: np.ndarray) -> np.ndarray:
+    """(W, C, B) phase-bin means of ``values[i]`` over window ``i``: :func:`bin_means` of
+    every window, bit for bit, in a handful of reductions.
+
+    The windows in phase order whose channels are all finite are laid side by side; their
+    (window, bin) runs of equal length L are gathered into one (C, runs, L) array and
+    summed along L by one pairwise ``np.add.reduce`` (the same summation, run by run, as
+    :func:`bin_means` makes). Windows with a non-finite sample or out of phase order go
+    through :func:`bin_means`.
+    """
+    W, C, B = len(windows), len(channels), len(edges) - 1
+    out = np.full((W, C, B), np.nan)
+    if not C or not W:
+        return out
+    blocks, starts, lengths, wi, ki = [], [], [], [], []
+    offset = 0
+    for i, w in enumerate(windows):
+        V = np.array([np.asarray(values[i][ch], dtype=float) for ch in channels], dtype=float)
+        order, bounds = _bin_order(w, edges)
+        if order is not None or not np.isfinite(V).all():
+            # (out of phase order: bin_means sums a reordered copy in its own way)
+            out[i] = bin_means(w, values[i], channels, edges)
+            continue
+        blocks.append(V)
+        n = bounds[1:] - bounds[:-1]
+        ks = np.flatnonzero(n)
+        starts.append(offset + bounds[ks])
+        lengths.append(n[ks])
+        wi.append(np.full(ks.size, i))
+        ki.append(ks)
+        offset += V.shape[1]
+    if not blocks:
+        return out
+    big = np.concatenate(blocks, axis=1)
+    starts, lengths = np.concatenate(starts), np.concatenate(lengths)
+    wi, ki = np.concatenate(wi), np.concatenate(ki)
+    for L in np.unique(lengths):
+        sel = lengths == L
+        idx = starts[sel][:, None] + np.arange(L)
+        runs = np.ascontiguousarray(big[:, idx])    # (C, runs, L), L innermost: pairwise
+        sums = np.add.reduce(runs, axis=2) / int(L)
+        out[wi[sel], :, ki[sel]] = sums.T
+    return out
+
+
 def residual_cube(windows: Sequence[StanceWindow], preds: Sequence[Mapping[str, np.ndarray]],
                   channels: Sequence[str], edges: np.ndarray) -> np.ndarray:
     """(W, C, B) binned residual measured − predicted."""
-    out = np.empty((len(windows), len(channels), len(edges) - 1))
-    for i, w in enumerate(windows):
-        diff = {c: w.meas[c] - np.asarray(preds[i][c], dtype=float) for c in channels}
-        out[i] = bin_means(w, diff, channels, edges)
-    return out
+    diffs = [{c: w.meas[c] - np.asarray(preds[i][c], dtype=float) for c in channels}
+             for i, w in enumerate(windows)]
+    return cube(windows, diffs, channels, edges)
 
 
 def pred_cube(windows: Sequence[StanceWindow], preds: Sequence[Mapping[str, np.ndarray]],
               channels: Sequence[str], edges: np.ndarray) -> np.ndarray:
     """(W, C, B) binned predictions."""
-    out = np.empty((len(windows), len(channels), len(edges) - 1))
-    for i, w in enumerate(windows):
-        out[i] = bin_means(w, preds[i], channels, edges)
-    return out
+    return cube(windows, preds, channels, edges)
 
 
 def group_keys(windows: Sequence[StanceWindow]) -> np.ndarray:
@@ -80,4 +138,4 @@ def group_keys(windows: Sequence[StanceWindow]) -> np.ndarray:
     return np.array([f"{w.trial}|{w.side}" for w in windows])
 
 
-__all__ = ["bin_means", "residual_cube", "pred_cube", "group_keys"]
+__all__ = ["bin_means", "cube", "residual_cube", "pred_cube", "group_keys"]

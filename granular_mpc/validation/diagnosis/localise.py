@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
 import numpy as np
-from scipy.stats import spearmanr
+from scipy.special import stdtr
 from statsmodels.stats.diagnostic import acorr_ljungbox
 
 from ..prepare import StanceWindow, channel_unit
@@ -36,8 +36,28 @@ def spearman(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     m = np.isfinite(x) & np.isfinite(y)
     if m.sum() < 10 or np.std(x[m]) == 0 or np.std(y[m]) == 0:
         return float("nan"), float("nan")
-    r = spearmanr(x[m], y[m])
-    return float(r.statistic), float(r.pvalue)
+    # scipy.stats.spearmanr's steps (ranks, corrcoef of the ranks, Student-t p-value),
+    # equal bit for bit without its per-call input handling (≈ 1 ms a call)
+    rs = np.corrcoef(np.column_stack([average_ranks(x[m]), average_ranks(y[m])]),
+                     rowvar=False)
+    dof = int(m.sum()) - 2
+    with np.errstate(divide="ignore"):
+        t = rs * np.sqrt((dof / ((rs + 1.0) * (1.0 - rs))).clip(0))
+    p = 2 * stdtr(dof, -np.abs(t))
+    return float(rs[1, 0]), float(p[1, 0])
+
+
+def average_ranks(v: np.ndarray) -> np.ndarray:
+    """Ranks 1…n of ``v``, ties getting their average rank
+    (``scipy.stats.rankdata(v, method="average")``)."""
+    order = np.argsort(v, kind="stable")
+    s = v[order]
+    first = np.flatnonzero(np.r_[True, s[:-1] != s[1:]])
+    counts = np.diff(first, append=v.size)
+    ranks = (first + 1.0) + (counts.astype(float) - 1) / 2
+    out = np.empty(v.size)
+    out[order] = np.repeat(ranks, counts)
+    return out
 
 
 def measurement_noise(windows: Sequence[StanceWindow],
@@ -289,4 +309,4 @@ def localize_final(windows: Sequence[StanceWindow], R_after: np.ndarray,
 
 __all__ = ["localize", "where_summary", "spearman", "Localization", "LocalisationStage",
            "localise_models", "localize_final", "measurement_noise", "practical_floor",
-           "MAX_LISTED_CELLS"]
+           "MAX_LISTED_CELLS", "average_ranks"]

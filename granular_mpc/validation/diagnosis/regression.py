@@ -92,11 +92,11 @@ class Regression:
         if ug.size >= 2:
             gkf = GroupKFold(n_splits=min(n_splits, ug.size))
             for _, te_g in gkf.split(ug, groups=ug):
-                test = set(ug[te_g])
-                te = np.array([g in test for g in self.groups])
+                test = ug[te_g]
+                te = np.isin(self.groups, test)
                 self.splits.append((np.flatnonzero(~te), np.flatnonzero(te)))
                 if self.stance is not None:
-                    ste = np.array([g in test for g in self.stance.groups])
+                    ste = np.isin(self.stance.groups, test)
                     self.stance_splits.append(np.flatnonzero(ste))
         self.seed = seed
         # every column's index in one (n, P) matrix, and the reduced systems of the row

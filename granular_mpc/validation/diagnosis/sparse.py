@@ -12,11 +12,11 @@ standardised (unit RMS) so one threshold serves all of them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .bounded_lsq import one_blas_thread
+from .bounded_lsq import lstsq_solution, one_blas_thread
 
 #: thresholds tried (standardised coefficient, in units of the target's RMS)
 THRESHOLDS = np.geomspace(0.01, 1.0, 21)
@@ -45,6 +45,9 @@ class Factored:
     n: int
     K: int
     F: int
+    #: column set → solution: the thresholds of :func:`cv_sse_path` on one fold start from
+    #: the same column sets (every feature active, then the same prunings)
+    _solved: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @classmethod
     def of(cls, X: np.ndarray, N: np.ndarray, y: np.ndarray) -> "Factored":
@@ -61,8 +64,12 @@ class Factored:
         full rows (ε · max(n, |cols|))."""
         if not cols.size:
             return np.zeros(0)
-        rcond = np.finfo(float).eps * max(self.n, cols.size)
-        return np.linalg.lstsq(self.R[:, cols], self.z, rcond=rcond)[0]
+        key = cols.tobytes()
+        sol = self._solved.get(key)
+        if sol is None:
+            rcond = np.finfo(float).eps * max(self.n, cols.size)
+            sol = self._solved[key] = lstsq_solution(self.R[:, cols], self.z, rcond)
+        return sol.copy()
 
 
 def stlsq_factored(fac: Factored, threshold: float,
