@@ -279,11 +279,13 @@ def _secondary_windows(secondary_after):
     return ws, before, after
 
 
-def test_a_secondary_channel_blocks_a_term_only_when_its_rise_is_significant():
-    """The primary channel must improve; a secondary credited channel blocks the term only
-    when the stance-by-stance rise of its squared error is significant (paired t ≥ RISE_T).
-    A +3 % rise that half the stances contradict (t ≈ 0.1) does not block; a rise in every
-    stance does. The t-statistic equals scipy's paired t-test of the per-stance SSEs."""
+def test_a_term_needs_a_significantly_better_channel_and_none_significantly_worse():
+    """A credited channel blocks a term only when the stance-by-stance rise of its squared
+    error is significant (paired t ≥ RISE_T), and some credited channel must get
+    significantly better (t ≤ −RISE_T). A +3 % rise that half the stances contradict
+    does not block; a rise in every stance does; a term whose channels all move within
+    noise is not added either. The t-statistic equals scipy's paired t-test of the
+    per-stance SSEs."""
     from scipy.stats import ttest_rel
 
     from granular_mpc.validation.diagnosis.acceptance import RISE_T, judge, rise_t
@@ -293,7 +295,8 @@ def test_a_secondary_channel_blocks_a_term_only_when_its_rise_is_significant():
     ws, before, after = _secondary_windows(lambda w: 0.02 if w % 2 else 0.07)
     acc = judge(ws, ["a", "b"], sigma, info, {"c_d": 2.0}, before, after)
     assert list(acc.credited_channels) == ["a", "b"]
-    b = acc.credited_channels["b"]
+    a, b = acc.credited_channels["a"], acc.credited_channels["b"]
+    assert a.rise_t <= -RISE_T
     assert b.after > b.before and -0.05 < b.reduction < 0       # a small rise
     assert b.rise_t < RISE_T and acc.accepted, acc.reasons
     sse = [[float(np.sum((w.meas["b"] - x["b"]) ** 2)) for w, x in zip(ws, xs)]
@@ -304,6 +307,15 @@ def test_a_secondary_channel_blocks_a_term_only_when_its_rise_is_significant():
     acc = judge(ws, ["a", "b"], sigma, info, {"c_d": 2.0}, before, after)
     assert "b" in acc.credited_channels and acc.credited_channels["b"].rise_t >= RISE_T
     assert not acc.accepted and "b" in acc.reasons[0] and "t =" in acc.reasons[0]
+
+    # channel a now moves by ±1 σ, better in one stance, worse in the next: no channel is
+    # significantly better
+    ws, before, after = _secondary_windows(lambda w: 0.02 if w % 2 else 0.07)
+    after = [dict(x, a=np.asarray(w.meas["a"]) - 10.0 + (3.0 if i % 2 else -3.0))
+             for i, (w, x) in enumerate(zip(ws, after))]
+    acc = judge(ws, ["a", "b"], sigma, info, {"c_d": 2.0}, before, after)
+    assert all(abs(c.rise_t) < RISE_T for c in acc.credited_channels.values())
+    assert not acc.accepted and "none of the channels" in acc.reasons[0]
 
 
 def test_structure_left_after_an_addition_is_partially_explained():
