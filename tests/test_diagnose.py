@@ -279,16 +279,14 @@ def _secondary_windows(secondary_after):
     return ws, before, after
 
 
-def test_a_term_needs_a_significantly_better_channel_and_none_significantly_worse():
-    """A credited channel blocks a term only when the stance-by-stance rise of its squared
-    error is significant (paired t ≥ RISE_T), and some credited channel must get
-    significantly better (t ≤ −RISE_T). A +3 % rise that half the stances contradict
-    does not block; a rise in every stance does; a term whose channels all move within
-    noise is not added either. The t-statistic equals scipy's paired t-test of the
-    per-stance SSEs."""
+def test_any_rise_in_a_credited_channel_blocks_a_term_and_its_t_is_reported():
+    """A credited channel whose all-sample replay RMSE rises blocks the term, even a +3 %
+    rise that half the stances contradict; the reason and the record carry the rise's
+    paired t-statistic over the stances, which equals scipy's paired t-test of the
+    per-stance SSEs (small here; large for a rise in every stance)."""
     from scipy.stats import ttest_rel
 
-    from granular_mpc.validation.diagnosis.acceptance import RISE_T, judge, rise_t
+    from granular_mpc.validation.diagnosis.acceptance import judge, rise_t
 
     sigma = {"a": 1.0, "b": 0.01}
     info = effect_info("inertial_drag")
@@ -296,26 +294,21 @@ def test_a_term_needs_a_significantly_better_channel_and_none_significantly_wors
     acc = judge(ws, ["a", "b"], sigma, info, {"c_d": 2.0}, before, after)
     assert list(acc.credited_channels) == ["a", "b"]
     a, b = acc.credited_channels["a"], acc.credited_channels["b"]
-    assert a.rise_t <= -RISE_T
-    assert b.after > b.before and -0.05 < b.reduction < 0       # a small rise
-    assert b.rise_t < RISE_T and acc.accepted, acc.reasons
+    assert a.rise_t < -2.0 and a.after < a.before
+    assert b.after > b.before and -0.05 < b.reduction < 0 and abs(b.rise_t) < 1.0
+    assert not acc.accepted and "b +" in acc.reasons[0] and "rise t = " in acc.reasons[0]
     sse = [[float(np.sum((w.meas["b"] - x["b"]) ** 2)) for w, x in zip(ws, xs)]
            for xs in (after, before)]
     assert rise_t(ws, before, after, "b") == pytest.approx(ttest_rel(*sse).statistic, rel=1e-9)
+    assert b.rise_t == pytest.approx(ttest_rel(*sse).statistic, rel=1e-9)
 
     ws, before, after = _secondary_windows(lambda w: 0.08 + 0.005 * (w % 3))
     acc = judge(ws, ["a", "b"], sigma, info, {"c_d": 2.0}, before, after)
-    assert "b" in acc.credited_channels and acc.credited_channels["b"].rise_t >= RISE_T
-    assert not acc.accepted and "b" in acc.reasons[0] and "t =" in acc.reasons[0]
+    assert acc.credited_channels["b"].rise_t > 5.0 and not acc.accepted
 
-    # channel a now moves by ±1 σ, better in one stance, worse in the next: no channel is
-    # significantly better
-    ws, before, after = _secondary_windows(lambda w: 0.02 if w % 2 else 0.07)
-    after = [dict(x, a=np.asarray(w.meas["a"]) - 10.0 + (3.0 if i % 2 else -3.0))
-             for i, (w, x) in enumerate(zip(ws, after))]
+    ws, before, after = _secondary_windows(lambda w: 0.03 + 0.005 * (w % 3))   # b better
     acc = judge(ws, ["a", "b"], sigma, info, {"c_d": 2.0}, before, after)
-    assert all(abs(c.rise_t) < RISE_T for c in acc.credited_channels.values())
-    assert not acc.accepted and "none of the channels" in acc.reasons[0]
+    assert acc.accepted and acc.reasons == ()
 
 
 def test_structure_left_after_an_addition_is_partially_explained():

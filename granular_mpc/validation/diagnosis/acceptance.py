@@ -5,15 +5,14 @@ structure that flagged the missing effect must be explained (``docs/validation.m
 
 * **Credited channels**: the channels whose replayed prediction the term moves most (RMS
   change over all samples in units of the channel's stance-to-stance scatter σ_c, at least
-  :data:`CREDIT_SHARE` of the largest). The model before the addition against the model
-  with it (:func:`judge`), stance by stance: the rise of a channel's squared error
-  (measured − replayed), paired over the stances, has the t-statistic :func:`rise_t`. At
-  least one credited channel must get *significantly better* (t ≤ −:data:`RISE_T`) and
-  none *significantly worse* (t ≥ :data:`RISE_T`). A term the linear screening liked but
-  whose replays make its own channels worse is reported, not added. (Until session 23
-  any rise of the all-sample RMSE in any credited channel blocked the term: a knee spring
-  that cut both knees' RMSE by 60 % was refused for grf_z +5.5 % at t ≈ 1,
-  docs/validation.md §3.3.)
+  :data:`CREDIT_SHARE` of the largest). Their replay RMSE (measured − replayed, all
+  samples) must fall in each of them, the model before the addition against the model
+  with it (:func:`judge`). A term the linear screening liked but whose replays make its
+  own channels worse is reported, not added. Each channel's change also carries the
+  paired t-statistic of its stance-by-stance squared-error rise (:func:`rise_t`), shown
+  in the report so that a reader can tell a rise within noise from a real one; it does
+  not decide (a rule "none significantly worse, one significantly better" was measured in
+  session 23 and not kept: docs/validation.md §3.3).
 * **Coefficients** (:func:`coefficient_checks`): the dominant parameter must not sit at a
   bound of its range (within :data:`AT_BOUND_SHARE` of the range), nor outside the
   physical interval of its :class:`~granular_mpc.effects.Param` (``wrong sign`` when it is
@@ -46,10 +45,6 @@ CREDIT_SHARE = 0.5
 MAX_CREDITED = 4
 #: a value within this share of its range from a bound is "at the bound"
 AT_BOUND_SHARE = 0.005
-#: a credited channel is significantly worse (better) when the paired t of its
-#: stance-by-stance squared-error rise is ≥ this (≤ −this): one-sided, ≈ 2.5 % false
-#: alarms for a normal difference — the conventional level, not tuned on the benchmarks
-RISE_T = 2.0
 
 
 def check_coefficient(info: EffectInfo, param: str, value: float) -> CoefficientCheck:
@@ -148,19 +143,13 @@ def judge(windows, channels: Sequence[str], sigma: Mapping[str, float], info: Ef
         r0, r1 = _channel_rmse(windows, before, c), _channel_rmse(windows, after, c)
         changes[c] = ChannelChange(r0, r1, 1.0 - r1 / r0 if r0 > 0 else 0.0, channel_unit(c),
                                    rise_t(windows, before, after, c))
-    worse = [c for c, ch in changes.items() if ch.after > ch.before and ch.rise_t >= RISE_T]
-    better = [c for c, ch in changes.items() if ch.after < ch.before and ch.rise_t <= -RISE_T]
+    worse = [c for c, ch in changes.items() if not ch.after < ch.before]
     if not credited:
         reasons.append("its replays change no scored channel")
     elif worse:
         reasons.append("its replays make the channels it is credited with worse: "
                        + ", ".join(f"{c} {100 * -changes[c].reduction:+.1f} % "
-                                   f"(t = {changes[c].rise_t:.1f})" for c in worse))
-    elif not better:
-        reasons.append("its replays improve none of the channels it is credited with "
-                       "significantly: "
-                       + ", ".join(f"{c} {100 * -ch.reduction:+.1f} % (t = {ch.rise_t:.1f})"
-                                   for c, ch in changes.items()))
+                                   f"(rise t = {changes[c].rise_t:.1f})" for c in worse))
     checks = coefficient_checks(info, fitted)
     notes = []
     for k, chk in enumerate(checks):
@@ -191,4 +180,4 @@ def cell_words(c: Cell) -> str:
 
 __all__ = ["Acceptance", "CoefficientCheck", "judge", "check_coefficient",
            "coefficient_checks", "credited_channels", "rise_t", "remaining_cells", "cell_words",
-           "CREDIT_SHARE", "MAX_CREDITED", "AT_BOUND_SHARE", "RISE_T"]
+           "CREDIT_SHARE", "MAX_CREDITED", "AT_BOUND_SHARE"]
