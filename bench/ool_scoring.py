@@ -103,14 +103,22 @@ def score(row: dict) -> dict:
 
         spec = parse_effect_string(case.partner)
         name = spec["name"]
-        true = effect_info(name).resolve_params(spec["params"])[case.partner_param]
-        fit = lib["fitted"].get(name, {}).get(case.partner_param)
-        out["partner_rank1"] = lib["rank1"] == name and lib["rank1_added"]
-        out["partner_coef_err"] = (fit - true) / true if fit is not None else math.nan
-        # both found: the final diagnosis (the feedback run, else the library run) adds
-        # the library partner and the form's term (the user term or a proposal); no rank
-        # is asked of either (one of the two is second whatever happens)
+        info = effect_info(name)
+        true = info.resolve_params(spec["params"])[case.partner_param]
+        # the error of the magnitude, as the recovery study's coef_err: relative to the
+        # distance from the neutral value (depth_hardening n: of the excess exponent n − 1)
+        scale = true - info.neutral_params()[case.partner_param]
+        # the final diagnosis: the feedback run (the user's term or the proposal passed
+        # back), else the library run. The partner's coefficient is read there: in the
+        # library run it also absorbs the missing form (cohesion + vdamp s1: suction
+        # 4990 Pa in the library run, 1995 Pa with user_vdamp beside it, for 2000)
         final = fb or lib
+        fit = final["fitted"].get(name, {}).get(case.partner_param)
+        out["partner_rank1"] = lib["rank1"] == name and lib["rank1_added"]
+        out["partner_coef_err"] = (fit - true) / scale if fit is not None else math.nan
+        # both found: the final diagnosis adds the library partner and the form's term
+        # (the user term or a proposal); no rank is asked of either (one of the two is
+        # second whatever happens)
         term = any(a == user or a.startswith(PROPOSED_PREFIX) for a in final["added"])
         out["both_found"] = name in final["added"] and term
     out["null_added"] = bool(lib["added"]) if case.mismatch else False
