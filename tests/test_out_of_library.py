@@ -212,3 +212,30 @@ def test_found_by_whom_and_detectable(ool):
     assert "| … found among the detectable (proposal / user term) | 2/3 (1/3 / 1/3) |" in table
     ut = ool.user_table([user, weak, quiet, prop])
     assert "| hard_layer_m1_s1 | hard_layer k=8000 N/m | 1, yes | -10 % | intrusion_z: +60 % / +70 % | user |" in ut
+
+
+def test_detectable_against_the_calibrated_baseline(ool):
+    """The truth's RMSE against the calibrated model's (the feedback run's 'before', else
+    the library run's): a hard layer whose truth cuts intrusion_z by 70 % against the model
+    file but only 25 % against a calibration that absorbed part of it is not detectable on
+    that scale; with no run's baseline the model-file test stands in."""
+    hl = ool.Case("hard_layer_m1_s1", 1, "hard_layer", 8000.0)
+    row = {"case": hl.__dict__,
+           "lib": _run("partially_explained", ["elastic_unloading"],
+                       {"intrusion_z": [0.0018, 0.0015]}),
+           "proposal": None,
+           "fb": _run("partially_explained", ["user_hard_layer"],
+                      {"intrusion_z": [0.0016, 0.0013]}),
+           "truth_replay": {"intrusion_z": [0.004, 0.0012]}}
+    s = ool.score(row)
+    assert s["detectable"] is True and s["truth_red_cal"] == pytest.approx(0.25)
+    assert s["detectable_calibrated"] is False
+    assert ool.truth_reduction_calibrated({**row, "fb": None}, "intrusion_z") == \
+        pytest.approx(1 - 0.0012 / 0.0018)
+    bare = {**row, "lib": _run("no_significant_missing_effect", [], {}), "fb": None}
+    b = ool.score(bare)
+    assert math.isnan(b["truth_red_cal"]) and b["detectable_calibrated"] is True
+    figs = ool.figures([row, bare])
+    assert figs["ool_detectable_calibrated_rate"] == 0.5
+    assert figs["ool_found_rate_detectable_calibrated"] == 0.0
+    assert "| … found among those | 0/1 |" in ool.targets_table([row, bare])
