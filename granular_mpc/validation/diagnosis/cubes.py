@@ -18,10 +18,13 @@ def bin_means(w: StanceWindow, values: Mapping[str, np.ndarray], channels: Seque
               edges: np.ndarray) -> np.ndarray:
     """(C, B) phase-bin means of ``values`` over one window (NaN where empty).
 
-    Bit-identical to ``v[(bin == k) & isfinite(v)].mean()`` per channel and bin: the
-    samples are put in bin order (stable, so a bin keeps its samples' order) and each
-    bin's sum is one pairwise ``np.add.reduce`` over a contiguous run, for every channel
-    without non-finite values at once.
+    For a window whose phases are in order, bit-identical to
+    ``v[(bin == k) & isfinite(v)].mean()`` per channel and bin: each bin's sum is one
+    pairwise ``np.add.reduce`` over a contiguous run, for every channel without non-finite
+    values at once. A window out of phase order is first put in bin order (stable, so a
+    bin keeps its samples' order); that reordered copy is Fortran-ordered, so its sums are
+    not pairwise and can differ from ``mean()`` in the last bits (kept: changing them
+    would change every diagnosis that meets such a window).
     """
     B = len(edges) - 1
     out = np.full((len(channels), B), np.nan)
