@@ -12,8 +12,9 @@ issue 12's MPC pass, still the default: ``controller.mpc.qp: newton``) and ``new
 replay starts from a fresh :class:`MPCData` and warm-starts along the recorded ticks, as the
 closed loop does; the assembly is identical in both (``QPNumerics.scaled`` only rescales it).
 With ``--old-tree DIR`` (another checkout, e.g. ``git archive HEAD | tar -x -C DIR``) its
-``granular_mpc/control/mpc.py`` is loaded as a module of this package (its own assembly and
-tick, this tree's config, ground model and ProxSuite wrapper) and replayed too, interleaved,
+``granular_mpc/control/mpc.py`` and ``control/solvers/proxqp.py`` are loaded as modules of
+this package (its own assembly, tick and ProxSuite wrapper; this tree's config and ground
+model) and replayed too, interleaved,
 with both settings: suffixes ``_oldtree`` (``scaled``) and ``_oldtree_newton``. Suffix
 ``_daqp``: ``controller.mpc.qp: daqp`` (the ``scaled`` QP solved by DAQP; its iterations are
 active-set changes, not ProxSuite's). Suffix ``_rows``: ``controller.mpc.qp: scaled_rows``
@@ -26,7 +27,11 @@ solve with our wrapper, ``MPCPlan.solve_ms``), ``mpc_tick_ms_median`` / ``_p99``
 shared machine), the ProxSuite iterations per solve (median, max) and the distance of the
 planned forces from the QP's optimum (a tight cold ProxSuite solve of the same QP,
 ``‖F − F*‖∞`` [N], median and max), plus the 1-min load before and after. Times are
-medians over reps × ticks (the first tick of each replay, a cold start, excluded).
+medians over reps × ticks (the first tick of each replay, a cold start, excluded). With
+``--old-tree``: ``mpc_plans_differing_oldtree`` (``_oldtree_newton``), the number of ticks
+whose plan (forces, predicted states, predicted sinkage) differs in any bit between this
+tree and the old one (first replay, same settings), and ``mpc_plan_force_diff_n_max_…``,
+their largest force difference [N].
 """
 
 from __future__ import annotations
@@ -79,15 +84,27 @@ def new_settings(mpc):
     return mpc.with_qp("scaled")
 
 
-def old_tree_mpc(mpc, tree: str):
-    """``mpc``'s model (same numbers) built by the ``CentroidalMPC`` of the checkout
-    ``tree``: its ``control/mpc.py`` loaded as ``granular_mpc.control.mpc_oldtree``."""
-    name = "granular_mpc.control.mpc_oldtree"
-    spec = importlib.util.spec_from_file_location(
-        name, Path(tree) / "granular_mpc" / "control" / "mpc.py")
+def load_old_module(tree: str, relpath: str, name: str):
+    """The file ``relpath`` of the checkout ``tree`` loaded as the module ``name`` (of this
+    package, so its relative imports resolve to this tree)."""
+    spec = importlib.util.spec_from_file_location(name, Path(tree) / relpath)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     spec.loader.exec_module(module)
+    return module
+
+
+def old_tree_mpc(mpc, tree: str):
+    """``mpc``'s model (same numbers) built by the ``CentroidalMPC`` of the checkout
+    ``tree``: its ``control/mpc.py`` loaded as ``granular_mpc.control.mpc_oldtree``, with
+    the ProxSuite wrapper of that checkout (``control/solvers/proxqp.py``, as
+    ``granular_mpc.control.solvers.proxqp_oldtree``) in place of this tree's."""
+    old_qp = load_old_module(tree, "granular_mpc/control/solvers/proxqp.py",
+                             "granular_mpc.control.solvers.proxqp_oldtree")
+    module = load_old_module(tree, "granular_mpc/control/mpc.py",
+                             "granular_mpc.control.mpc_oldtree")
+    for name in ("ProxQPSolver", "QPProblem", "QPStatus"):
+        setattr(module, name, getattr(old_qp, name))
     return module.CentroidalMPC(mpc.config, mpc.mass, mpc.inertia_B, mpc.gravity, mpc.ground,
                                 mpc.n_points, mpc.max_pairs)
 
@@ -108,7 +125,7 @@ def replay(mpc, ticks, keep_qps: bool = False) -> dict:
         return sol
 
     data.solver.solve = counting
-    build, solve, tick, forces = [], [], [], []
+    build, solve, tick, forces, plans = [], [], [], [], []
     c0 = time.process_time()
     for kw in ticks:
         t0 = time.perf_counter()
@@ -117,9 +134,11 @@ def replay(mpc, ticks, keep_qps: bool = False) -> dict:
         build.append(plan.build_ms)
         solve.append(plan.solve_ms)
         forces.append(plan.forces)
+        plans.append((plan.forces, plan.states, plan.sinkage))
     cpu = (time.process_time() - c0) * 1e3 / len(ticks)
     return {"build": build[1:], "solve": solve[1:], "tick": tick[1:], "cpu": cpu,
-            "iters": iters[1:], "forces": forces, "qps": qps, "xs": xs, "failures": data.failures}
+            "iters": iters[1:], "forces": forces, "plans": plans, "qps": qps, "xs": xs,
+            "failures": data.failures}
 
 
 def optimum_forces(mpc, qps) -> list:
@@ -184,12 +203,30 @@ def main(argv=None) -> dict:
                     dist[name] = force_errors(model, r)
     figs = figures(runs, dist, (load0,))
     figs["mpc_ticks"] = float(len(ticks))
+    if args.old_tree:
+        figs.update(plan_differences(runs["new"][0], runs["oldtree"][0], "_oldtree"))
+        figs.update(plan_differences(runs["old"][0], runs["oldtree_newton"][0],
+                                     "_oldtree_newton"))
     units = {}
     for sfx in ("_old", "", "_daqp", "_rows", "_oldtree", "_oldtree_newton"):
         units.update({f"_ms_median{sfx}": "ms", f"_ms_p99{sfx}": "ms", f"_ms_mean{sfx}": "ms",
                       f"_n_median{sfx}": "N", f"_n_max{sfx}": "N"})
     emit(figs, args.json, units)
     return figs
+
+
+def plan_differences(run: dict, other: dict, suffix: str) -> dict:
+    """How the plans of two replays of the same ticks differ: the number of ticks whose
+    forces, predicted states or predicted sinkage are not bit for bit the same
+    (``mpc_plans_differing``; signed zeros count as differing) and the largest force
+    difference [N] (``mpc_plan_force_diff_n_max``)."""
+    differing, worst = 0, 0.0
+    for a, b in zip(run["plans"], other["plans"]):
+        same = all(x.shape == y.shape and x.tobytes() == y.tobytes() for x, y in zip(a, b))
+        differing += not same
+        worst = max(worst, float(np.abs(a[0] - b[0]).max()))
+    return {f"mpc_plans_differing{suffix}": float(differing),
+            f"mpc_plan_force_diff_n_max{suffix}": worst}
 
 
 def force_errors(mpc, run: dict) -> np.ndarray:

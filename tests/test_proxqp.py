@@ -122,6 +122,22 @@ def test_non_finite_data_is_a_status():
     assert sol.status is QPStatus.NON_FINITE
 
 
+def test_without_multipliers_the_solutions_are_bit_identical():
+    """``multipliers=False`` (the MPC's setting) only leaves y, z out: x, status and
+    iterations are the same, bit for bit, along a warm-started sequence."""
+    rng = np.random.default_rng(4)
+    p = random_qp(rng)
+    with_yz = ProxQPSolver(12, 2, 8, box=True, eps_abs=1e-9, max_iter=1000)
+    without = ProxQPSolver(12, 2, 8, box=True, eps_abs=1e-9, max_iter=1000, multipliers=False)
+    for _ in range(5):
+        a, b = with_yz.solve(p), without.solve(p)
+        assert a.status.ok and b.status is a.status and b.iterations == a.iterations
+        assert a.x.tobytes() == b.x.tobytes()
+        assert a.y.shape == (2,) and a.z.shape == (8 + 12,)
+        assert b.y is None and b.z is None
+        p.g = p.g + 0.05 * rng.normal(size=12)
+
+
 def test_size_mismatch_raises_solver_error():
     with pytest.raises(SolverError, match="differs"):
         ProxQPSolver(3, 0, 0).solve(QPProblem(np.eye(2), np.zeros(2)))

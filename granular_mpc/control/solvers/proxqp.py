@@ -108,6 +108,11 @@ class QPProblem:
     u: np.ndarray | None = None
     lb: np.ndarray | None = None
     ub: np.ndarray | None = None
+    #: set by a caller that has made sure, for the data now in the arrays, that the sizes
+    #: are the solver's and H, g, A, b, C are finite, l, u free of NaN: :class:`ProxQPSolver`
+    #: then skips its own check (the MPC checks its whole QP with one reduction over one
+    #: buffer, :class:`~granular_mpc.control.mpc.MPCWork`, and sets this each tick)
+    checked: bool = False
 
     @property
     def n(self) -> int:
@@ -214,6 +219,9 @@ class ProxQPSolver:
             ``primal_dual_ldlt`` backend: a cold solve of a tick where x = 0 is feasible
             ended "primal infeasible" after 50 iterations at 1e-4, solved in 53 at 1e-5 …
             1e-8).
+        multipliers: whether a solution carries the multipliers (:attr:`QPSolution.y`,
+            :attr:`QPSolution.z`, copied out of ProxSuite); False leaves them None and saves
+            the two copies (the MPC, which reads only ``x``). ``x`` is the same either way.
     """
 
     n: int
@@ -225,6 +233,7 @@ class ProxQPSolver:
     backend: str = "automatic"
     mu_in_reset: float | None = None
     eps_primal_inf: float | None = None
+    multipliers: bool = True
     _qp: object = field(default=None, repr=False)
     _initialised: bool = field(default=False, repr=False)
     _warm: bool = field(default=False, repr=False)
@@ -253,11 +262,14 @@ class ProxQPSolver:
         """Solve ``p`` (same dimensions every call); never raises for a numerical failure.
 
         The arrays of ``p`` are copied into ProxSuite's model, so a caller may refill the
-        same buffers for its next problem.
+        same buffers for its next problem. Unless ``p.checked``, its sizes and data are
+        checked first: a non-finite problem gives :attr:`QPStatus.NON_FINITE` without
+        calling ProxSuite.
         """
-        p.check_size(self.n, self.n_eq, self.n_in)
-        if not _finite(p):
-            return QPSolution(np.zeros(self.n), QPStatus.NON_FINITE)
+        if not p.checked:
+            p.check_size(self.n, self.n_eq, self.n_in)
+            if not _finite(p):
+                return QPSolution(np.zeros(self.n), QPStatus.NON_FINITE)
         args = [p.H, p.g, p.A, p.b, p.C, p.l, p.u]
         if self.box:
             args += [p.lb, p.ub]
@@ -300,6 +312,8 @@ class ProxQPSolver:
         x = np.array(r.x)
         if not math.isfinite(float(_add_reduce(x, None))):
             status = QPStatus.NON_FINITE
+        if not self.multipliers:
+            return QPSolution(x, status, int(info.iter), 0.0, float(info.objValue))
         return QPSolution(x, status, int(info.iter), 0.0, float(info.objValue),
                           np.array(r.y), np.array(r.z))
 
