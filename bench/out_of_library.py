@@ -81,10 +81,12 @@ def _channel_changes(d) -> dict:
 
 
 def _worsened(d) -> list[str]:
-    """Added terms whose replay worsens a channel they are credited with."""
+    """Added terms whose replay worsens a channel they are credited with (the judgement
+    that added them: a term rejected against one model may be added against a later one)."""
     out = []
     for a in d.acceptance:
-        if a.effect in d.added and any(ch.after > ch.before for ch in a.credited_channels.values()):
+        if a.accepted and a.effect in d.added and any(
+                ch.after > ch.before for ch in a.credited_channels.values()):
             out.append(a.effect)
     return out
 

@@ -1,9 +1,15 @@
 """The refinement's contender rule (``diagnosis.refine.contenders_for``): the screening's
 indistinguishable partner of the leading candidate is refined by replays even when it is
-not significant, and nothing is refined without a significant leader."""
+not significant, and nothing is refined without a significant leader; a rejection or an
+acceptance holds against the model it was judged on (``rejected_against``,
+``rejudge_earlier``)."""
 
+import numpy as np
+
+from granular_mpc.validation.diagnosis.acceptance_records import Acceptance
 from granular_mpc.validation.diagnosis.ranking_records import CandidateStats
-from granular_mpc.validation.diagnosis.refine import contenders_for, is_rival
+from granular_mpc.validation.diagnosis.refine import (contenders_for, is_rival,
+                                                      rejected_against)
 from granular_mpc.validation.diagnosis.result import IndistinguishablePair
 from granular_mpc.validation.diagnosis.screen import (MIN_SHARED_INCLUSION, inclusion_ties,
                                                       share_inclusion)
@@ -165,3 +171,104 @@ def test_a_rival_is_judged_only_when_it_beats_the_others():
     scored = [(420.0, "joint_friction"), (380.0, "user_stiction")]
     assert judging_order(scored, {"user_stiction"}) == ["user_stiction", "joint_friction"]
     assert judging_order(scored, set()) == ["user_stiction", "joint_friction"]
+
+
+def _judged(effect: str, accepted: bool, given: tuple[str, ...] = ()) -> Acceptance:
+    return Acceptance(effect, accepted, {}, (), () if accepted else ("worse",), (), given)
+
+
+def test_a_rejection_holds_only_against_the_model_it_was_judged_on():
+    """A knee spring rejected while a force-sensor bias was unmodelled is a contender again
+    once the bias is added; rejected again against that model, it is blocked for it."""
+    stats, _ = _split_screening()        # joint_friction leads, inertial_drag significant
+    first = [_judged("joint_friction", False)]
+    assert rejected_against(first, []) == {"joint_friction"}
+    assert [r.effect for r in contenders_for(stats, [], rejected_against(first, []), 3,
+                                             with_rivals=False)] == ["inertial_drag"]
+    after = first + [_judged("inertial_drag", True)]
+    assert rejected_against(after, ["inertial_drag"]) == set()
+    again = contenders_for(stats, ["inertial_drag"], rejected_against(after, ["inertial_drag"]),
+                           3, with_rivals=False)
+    assert [r.effect for r in again] == ["joint_friction"]
+    twice = after + [_judged("joint_friction", False, ("inertial_drag",))]
+    assert rejected_against(twice, ["inertial_drag"]) == {"joint_friction"}
+    assert contenders_for(stats, ["inertial_drag"],
+                          rejected_against(twice, ["inertial_drag"]), 3, with_rivals=False) == []
+
+
+class _Pool:
+    """Replays of the fake model: a joint effect in the variant explains the knees, a sensor
+    effect ``grf_z`` — as ``truth`` says (the effects' names whose own replays help)."""
+
+    def __init__(self, windows, truth):
+        self.windows, self.truth, self.calls = windows, truth, 0
+
+    def preds(self, effects):
+        out = []
+        for w in self.windows:
+            p = {c: np.array(v, float) for c, v in w.meas.items()}
+            for c, name in (("q_left_knee", "joint_friction"), ("grf_z", "force_sensor_bias")):
+                helps = name in effects and name in self.truth
+                hurts = name in effects and name not in self.truth
+                miss = 0.0 if helps else (0.02 if c == "q_left_knee" else 2.0)
+                p[c] = p[c] + miss * (1.0 + 0.1 * w.index) * (1.5 if hurts else 1.0)
+            out.append(p)
+        return out
+
+    def run(self, variants):
+        self.calls += 1
+        return {k: self.preds({i.name for i, _ in (*v.joints, *v.sensors)})
+                for k, v in variants.items()}
+
+
+def _rejudge_case(truth, monkeypatch):
+    from types import SimpleNamespace
+
+    import granular_mpc.validation.diagnosis.refine as refine_module
+    from granular_mpc.effects import effect_info
+    from granular_mpc.validation.diagnosis.refine import rejudge_earlier
+
+    rng = np.random.default_rng(0)
+    windows = [SimpleNamespace(index=i, meas={"q_left_knee": rng.normal(0, 1e-3, 30),
+                                              "grf_z": rng.normal(50, 1, 30)})
+               for i in range(6)]
+    pool = _Pool(windows, truth)
+    infos = {n: effect_info(n) for n in ("force_sensor_bias", "joint_friction")}
+    fitted = {"force_sensor_bias": infos["force_sensor_bias"].resolve_params({"bias_z": 3.0}),
+              "joint_friction": infos["joint_friction"].resolve_params({"coulomb": 0.1})}
+    refits = []
+
+    def refit(problem, pool_, res, candidates, sel, start, nuisance, *, iterations):
+        refits.append(tuple(sel))
+        return SimpleNamespace(fitted={s: fitted[s] for s in sel}, theta={},
+                               preds=pool.preds(set(sel)))
+
+    monkeypatch.setattr(refine_module, "refine_replays", refit)
+    problem = SimpleNamespace(windows=windows, channels=["q_left_knee", "grf_z"])
+    res = SimpleNamespace(base=SimpleNamespace(theta={}),
+                          sigma={"q_left_knee": 1e-3, "grf_z": 1.0})
+    selected = ["force_sensor_bias", "joint_friction"]
+    acceptance = []
+    kept, fit, _, preds = rejudge_earlier(problem, pool, res,
+                                          SimpleNamespace(infos=infos,
+                                                          columns={n: () for n in infos}),
+                                          selected, fitted, {}, pool.preds(set(selected)),
+                                          acceptance, 2)
+    return kept, acceptance, refits
+
+
+def test_an_earlier_addition_that_the_final_model_does_not_need_is_dropped(monkeypatch):
+    """A force-sensor bias added first as a proxy, then the joint friction: against the final
+    model its own replays make grf_z worse — dropped, the rest refitted without it; the
+    same bias when it is real stays."""
+    kept, acceptance, refits = _rejudge_case({"joint_friction"}, monkeypatch)
+    assert kept == ["joint_friction"] and refits == [("joint_friction",)]
+    (acc,) = acceptance
+    assert acc.effect == "force_sensor_bias" and not acc.accepted
+    assert acc.given == ("joint_friction",)
+    assert "dropped once joint_friction had been added" in acc.reasons[-1]
+
+    kept, acceptance, refits = _rejudge_case({"joint_friction", "force_sensor_bias"},
+                                             monkeypatch)
+    assert kept == ["force_sensor_bias", "joint_friction"] and refits == []
+    assert [a.accepted for a in acceptance] == [True]

@@ -8,8 +8,9 @@ from __future__ import annotations
 from granular_mpc.validation.diagnosis import ParamEstimate, Ranked
 from granular_mpc.validation.diagnosis.ranking_records import ConditionalResult
 from granular_mpc.validation.diagnosis.localization_records import Cell, Localization
+from granular_mpc.validation.diagnosis.acceptance_records import Acceptance
 from granular_mpc.validation.diagnosis.verdict import (VerdictInputs, best_candidate_statement,
-                                                       decide)
+                                                       decide, rejected_sentence)
 
 
 def _ranked(effect: str) -> Ranked:
@@ -139,3 +140,21 @@ def test_structure_the_screening_still_finds_after_the_addition_is_not_explained
     assert "still finds significant structure" in t and "strongest cells" not in t
     # nothing added: no leftover evidence (the candidate is simply not added)
     assert VerdictInputs((), (left,), None, clean, clean).leftover_evidence == ()
+
+
+def test_a_candidate_added_after_an_earlier_rejection_is_not_reported_as_rejected():
+    """Rejected against the calibrated model, added once another effect was: the verdict
+    does not call it 'not added'; a rejection against the new model says which model."""
+    worse = ("its replays make the channels it is credited with worse: grf_z +5.5 %",)
+    acc = (Acceptance("knee_spring", False, {}, (), worse),
+           Acceptance("force_sensor_bias", True, {}, ()),
+           Acceptance("knee_spring", True, {}, (), (), (), ("force_sensor_bias",)),
+           Acceptance("joint_friction", False, {}, (), worse, (), ("force_sensor_bias",
+                                                                   "knee_spring")))
+    v = VerdictInputs(("force_sensor_bias", "knee_spring"),
+                      (_ranked("force_sensor_bias"), _ranked("knee_spring")), None, _empty(),
+                      acceptance=acc)
+    text = rejected_sentence(v)
+    assert "knee_spring was reported" not in text
+    assert ("joint_friction was reported, not added (" + worse[0]
+            + ") — judged with force_sensor_bias, knee_spring added") in text

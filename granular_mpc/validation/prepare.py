@@ -515,9 +515,12 @@ def _window(index: int, st: TrialStates, arrays: dict, biped: Biped, data: pin.D
         kt = min(a, pb) - 1                       # its last sample before the window
         force = st.grf_s[kt] if st.has_force else st.estimated_force(other, kt)
         if st.has_intrusion:
+            # its deepest depth is its depth now: it carried the single-support load up to
+            # this sample (the maximum of the noisy intrusion over the run is biased deep,
+            # a spurious elastic rebound: docs/validation.md §2, "The trailing foot")
             trail = _foot_init(biped, data, other, depth=float(st.intr_s[kt, 2]),
                                intrusion=st.intr_s[kt], force=force, in_contact=True,
-                               depth_max=float(st.intr_s[pa:pb, 2].max()),
+                               depth_max=float(st.intr_s[kt, 2]),
                                t_stance=float(st.time[kt] - st.time[pa]), K=K,
                                origin=origin)
         else:

@@ -46,6 +46,9 @@ class Acceptance(Record):
         coefficients: the checks of its fitted parameters.
         reasons: why it was not added (empty when accepted).
         notes: flags that did not block it (a secondary parameter at a bound …).
+        given: the effects already added when it was judged (empty: judged against the
+            calibrated model). A rejection holds against that model only: after a later
+            addition the candidate may be refined and judged again.
     """
 
     effect: str
@@ -54,6 +57,7 @@ class Acceptance(Record):
     coefficients: tuple[CoefficientCheck, ...]
     reasons: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
     notes: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
+    given: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
 
 
 @dataclass(frozen=True)

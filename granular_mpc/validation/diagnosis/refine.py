@@ -8,7 +8,7 @@ model's held-out statistics (``docs/validation.md`` §3.3)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Collection, Mapping, Sequence
 
 import numpy as np
@@ -95,7 +95,8 @@ def contenders_for(stats: Sequence[CandidateStats], selected: Sequence[str],
     Args:
         stats: the current candidate statistics, best first.
         selected: the effects already added.
-        rejected: the effects the acceptance rejected.
+        rejected: the effects the acceptance rejected against the current model
+            (:func:`rejected_against`).
         max_contenders: significant candidates refined.
         pairs: the screening's indistinguishable pairs (pass none once an effect has been
             added: they were measured against the calibrated model only).
@@ -152,6 +153,54 @@ def without_term(pool: ReplayPool, res: Residuals, candidates: CandidateSet,
     return tuple(pool.run({"without": variant})["without"])
 
 
+def rejected_against(acceptance: Sequence[Acceptance], selected: Sequence[str]) -> set[str]:
+    """The candidates the acceptance rejected against the model with exactly ``selected``
+    added. A rejection holds against the model it was judged on — its replays, its
+    co-refitted coefficients: after a further addition the rejected candidate may be
+    refined and judged again (a knee spring whose replays raised ``grf_z`` while a
+    force-sensor bias was unmodelled passes once the bias is added)."""
+    given = tuple(selected)
+    return {a.effect for a in acceptance if not a.accepted and tuple(a.given) == given}
+
+
+def rejudge_earlier(problem: Problem, pool: ReplayPool, res: Residuals,
+                    candidates: CandidateSet, selected: list[str],
+                    fitted: Mapping[str, Mapping[str, float]], theta: Mapping[str, float],
+                    preds: Sequence[dict], acceptance: list[Acceptance],
+                    refine_iterations: int) -> tuple[list[str], Mapping, dict, Sequence[dict]]:
+    """Judge every effect added before the last again, against the final model: an
+    acceptance holds against the model it was judged on, as a rejection does
+    (:func:`rejected_against`). Its own replays — the final model with and without it, at
+    the final θ and the others' refined values — must still improve the channels it is
+    credited with and its coefficients stay physical; if not, a later addition explains
+    what it was added for (a both-feet force-sensor bias added for a left-only one, a
+    joint friction standing in for a stiction), and it is dropped: the others are refined
+    again without it. Each judgement is appended to ``acceptance`` (``given``: the others).
+
+    Returns:
+        The effects kept, their refined parameters, θ and per-window replay outputs.
+    """
+    windows, channels = problem.windows, problem.channels
+    for name in list(selected[:-1]):
+        others = [s for s in selected if s != name]
+        specs = [(candidates.infos[s], dict(fitted[s])) for s in others]
+        variant = effect_variant(specs, Variant(theta={**res.base.theta, **theta}))
+        before = tuple(pool.run({"without": variant})["without"])
+        acc = replace(judge(windows, channels, res.sigma, candidates.infos[name],
+                            fitted[name], before, preds), given=tuple(others))
+        if acc.accepted:
+            acceptance.append(acc)
+            continue
+        acceptance.append(replace(acc, reasons=acc.reasons + (
+            f"added earlier, dropped once {', '.join(others)} had been added",)))
+        fit = refine_replays(problem, pool, res, candidates, others,
+                             _values(fitted, candidates, others), nuisance_columns(theta),
+                             iterations=refine_iterations)
+        selected = others
+        fitted, theta, preds = fit.fitted, dict(fit.theta), fit.preds
+    return selected, fitted, dict(theta), preds
+
+
 def judging_order(scored: Sequence[tuple[float, str]], rivals: Collection[str]) -> list[str]:
     """The refined contenders the acceptance judges, by refined AICc (``scored``: (AICc,
     effect)): every contender that is not a rival, and a rival only when its AICc is
@@ -185,7 +234,6 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
     stats = list(scr.ranking)
     steps: list[SelectionStep] = []
     acceptance: list[Acceptance] = []
-    rejected: set[str] = set()
     refined_fits: dict[str, list[RefinedFit]] = {r.effect: [] for r in scr.ranking}
     conditional: dict[str, list[ConditionalResult]] = {r.effect: [] for r in scr.ranking}
 
@@ -200,6 +248,7 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
 
     twins = {t.effect for t in scr.strength_twins}
     while len(selected) < max_effects:
+        rejected = rejected_against(acceptance, selected)
         pairs = scr.indistinguishable if not selected else ()
         contenders = contenders_for(stats, selected, rejected, max_contenders, pairs, twins)
         if not contenders:
@@ -229,13 +278,13 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
                 continue                      # a rival only wins, it is no fallback
             # the term's own replays: with and without it at the same (co-refitted) θ
             before = without_term(pool, res, candidates, fit, selected)
-            acc = judge(windows, channels, res.sigma, candidates.infos[cand.effect],
-                        fit.fitted[cand.effect], before, fit.preds)
+            acc = replace(judge(windows, channels, res.sigma, candidates.infos[cand.effect],
+                                fit.fitted[cand.effect], before, fit.preds),
+                          given=tuple(selected))
             acceptance.append(acc)
             if acc.accepted:
                 chosen = (cand, fit)
                 break
-            rejected.add(cand.effect)
         if chosen is None:
             continue                          # the next significant candidates, if any
         best, fit = chosen
@@ -268,6 +317,10 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
             conditional[r.effect].append(ConditionalResult(tuple(selected),
                                                            r.heldout_error_reduction,
                                                            r.significant))
+    if len(selected) > 1:
+        selected, fitted, theta_final, final_preds = rejudge_earlier(
+            problem, pool, res, candidates, selected, fitted, theta_final, final_preds,
+            acceptance, refine_iterations)
     return Refinement(tuple(selected), fitted, theta_final, tuple(final_preds),
                       _final_ranking(scr.ranking, selected, fitted, refined_fits, conditional,
                                      acceptance),
@@ -282,7 +335,8 @@ def _final_ranking(ranking, selected, fitted, refined_fits, conditional,
     """The added effects (in the order the refined fits chose them), then the others by
     their screening held-out error reduction."""
     order = {n: i for i, n in enumerate(selected)}
-    why = {a.effect: a.reasons for a in acceptance if not a.accepted}
+    why = {a.effect: a.reasons for a in acceptance
+           if not a.accepted and a.effect not in selected}     # the last judgement
     entries = sorted(ranking, key=lambda e: (order.get(e.effect, len(order)), e.rank))
     out = []
     for i, e in enumerate(entries):
@@ -323,4 +377,5 @@ def _refined_heldout(problem, candidates, res, scr, selected, fitted,
 
 
 __all__ = ["Refinement", "refine", "contenders_for", "is_rival", "judging_order",
+           "rejected_against", "rejudge_earlier",
            "without_term", "SECANT_BOUNDS"]

@@ -244,7 +244,8 @@ def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
                            for c, x in a.credited_channels.items()) or "–"
             co = "; ".join(f"{k.text} ({k.status})" if k.status != "ok" else k.text
                            for k in a.coefficients) or "–"
-            lines.append(f"| {a.effect} | {'yes' if a.accepted else 'no'} | {ch} | {co} | "
+            who = a.effect + (f" (given {', '.join(a.given)})" if a.given else "")
+            lines.append(f"| {who} | {'yes' if a.accepted else 'no'} | {ch} | {co} | "
                          f"{'; '.join(a.reasons) or '–'} |")
     if d.indistinguishable:
         lines += ["", "## Candidates the data cannot tell apart", ""]
