@@ -249,11 +249,12 @@ def _rejudge_case(truth, monkeypatch):
                           sigma={"q_left_knee": 1e-3, "grf_z": 1.0})
     selected = ["force_sensor_bias", "joint_friction"]
     acceptance = []
-    kept, fit, _, preds = rejudge_earlier(problem, pool, res,
+    kept, fit, _, preds, refit_out = rejudge_earlier(problem, pool, res,
                                           SimpleNamespace(infos=infos,
                                                           columns={n: () for n in infos}),
                                           selected, fitted, {}, pool.preds(set(selected)),
                                           acceptance, 2)
+    assert (refit_out is None) == (refits == [])
     return kept, acceptance, refits
 
 

@@ -28,6 +28,9 @@ from .residuals import Residuals
 from .result import ConditionalRow, IndistinguishablePair, RefinedHeldout, SelectionStep
 from .screen import Screening, candidate_stats, channel_heldout, passes_but_inclusion
 
+#: how many times an earlier addition may be dropped (:func:`rejudge_earlier`) and the
+#: forward selection resumed against the reduced model
+MAX_DROPS = 1
 #: bounds of the scale along the secant from the calibrated to the refined model
 SECANT_BOUNDS = (0.0, 2.0)
 REFINED_HELDOUT_NOTE = (
@@ -167,7 +170,8 @@ def rejudge_earlier(problem: Problem, pool: ReplayPool, res: Residuals,
                     candidates: CandidateSet, selected: list[str],
                     fitted: Mapping[str, Mapping[str, float]], theta: Mapping[str, float],
                     preds: Sequence[dict], acceptance: list[Acceptance],
-                    refine_iterations: int) -> tuple[list[str], Mapping, dict, Sequence[dict]]:
+                    refine_iterations: int
+                    ) -> tuple[list[str], Mapping, dict, Sequence[dict], GaussNewtonFit | None]:
     """Judge every effect added before the last again, against the final model: an
     acceptance holds against the model it was judged on, as a rejection does
     (:func:`rejected_against`). Its own replays — the final model with and without it, at
@@ -178,9 +182,11 @@ def rejudge_earlier(problem: Problem, pool: ReplayPool, res: Residuals,
     again without it. Each judgement is appended to ``acceptance`` (``given``: the others).
 
     Returns:
-        The effects kept, their refined parameters, θ and per-window replay outputs.
+        The effects kept, their refined parameters, θ, per-window replay outputs, and the
+        refit without the dropped effects (None: nothing dropped).
     """
     windows, channels = problem.windows, problem.channels
+    refit = None
     for name in list(selected[:-1]):
         others = [s for s in selected if s != name]
         specs = [(candidates.infos[s], dict(fitted[s])) for s in others]
@@ -193,12 +199,12 @@ def rejudge_earlier(problem: Problem, pool: ReplayPool, res: Residuals,
             continue
         acceptance.append(replace(acc, reasons=acc.reasons + (
             f"added earlier, dropped once {', '.join(others)} had been added",)))
-        fit = refine_replays(problem, pool, res, candidates, others,
-                             _values(fitted, candidates, others), nuisance_columns(theta),
-                             iterations=refine_iterations)
+        refit = refine_replays(problem, pool, res, candidates, others,
+                               _values(fitted, candidates, others), nuisance_columns(theta),
+                               iterations=refine_iterations)
         selected = others
-        fitted, theta, preds = fit.fitted, dict(fit.theta), fit.preds
-    return selected, fitted, dict(theta), preds
+        fitted, theta, preds = refit.fitted, dict(refit.theta), refit.preds
+    return selected, fitted, dict(theta), preds, refit
 
 
 def judging_order(scored: Sequence[tuple[float, str]], rivals: Collection[str]) -> list[str]:
@@ -246,56 +252,10 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
         k_ = n_nuis + sum(len(candidates.columns[s]) for s in sel)
         return aicc(float(y_ @ y_), y_.size * d_.n_eff_factor, k_), float(y_ @ y_)
 
-    twins = {t.effect for t in scr.strength_twins}
-    while len(selected) < max_effects:
-        rejected = rejected_against(acceptance, selected)
-        pairs = scr.indistinguishable if not selected else ()
-        contenders = contenders_for(stats, selected, rejected, max_contenders, pairs, twins)
-        if not contenders:
-            break
-        rivals = {r.effect for r in contenders} - {r.effect for r in contenders_for(
-            stats, selected, rejected, max_contenders, pairs, twins, with_rivals=False)}
-        prev_vals = _values(fitted, candidates, selected)
-        tried = []
-        for r in contenders:
-            start = dict(prev_vals)
-            for p, est in r.params.items():
-                start[f"{r.effect}.{p}"] = float(est.value)
-            sel = selected + [r.effect]
-            # every contender fully refined: AICc compares the models at their optima, not
-            # after one step from the linear estimates (which favours the faster-converging)
-            fit = refine_replays(problem, pool, res, candidates, sel, start,
-                                 nuisance_columns(theta_final), iterations=refine_iterations)
-            score, rss = refined_score(fit, sel)
-            tried.append((score, r, fit))
-            refined_fits[r.effect].append(RefinedFit(tuple(selected), score, rss,
-                                                     dict(fit.fitted[r.effect])))
-        tried.sort(key=lambda t: t[0])
-        chosen = None
-        judged = set(judging_order([(t[0], t[1].effect) for t in tried], rivals))
-        for _, cand, fit in tried:            # by AICc; the first that passes is added
-            if cand.effect not in judged:
-                continue                      # a rival only wins, it is no fallback
-            # the term's own replays: with and without it at the same (co-refitted) θ
-            before = without_term(pool, res, candidates, fit, selected)
-            acc = replace(judge(windows, channels, res.sigma, candidates.infos[cand.effect],
-                                fit.fitted[cand.effect], before, fit.preds),
-                          given=tuple(selected))
-            acceptance.append(acc)
-            if acc.accepted:
-                chosen = (cand, fit)
-                break
-        if chosen is None:
-            continue                          # the next significant candidates, if any
-        best, fit = chosen
-        selected.append(best.effect)
-        fitted, theta_final, final_preds = fit.fitted, dict(fit.theta), fit.preds
-        step = dict(added=best.effect, contenders=tuple(t[1].effect for t in tried),
-                    contender_aicc=tuple(t[0] for t in tried), refine=fit.log)
-        if len(selected) >= max_effects:
-            steps.append(SelectionStep(**step))
-            break
-        # conditional test of the others against the refined model (linearised around it)
+    def conditional_test(fit: GaussNewtonFit) -> list[CandidateStats]:
+        """The candidates not added, re-tested against the current model (``selected`` at
+        ``fitted``, linearised around it; the sensitivities of the added ones from ``fit``);
+        each result is recorded in ``conditional``."""
         R_cur = residual_cube(windows, final_preds, channels, edges)
         sens_c = dict(res.sens)
         sens_c.update(fit.sens_selected)
@@ -310,17 +270,77 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
         keys_fixed = base_keys + [k for s in selected for k in cand_keys[s]]
         reg_c = scr.builder.build(R_cur, sens_c, geo_c, b_c, keys_fixed).regression
         rest = {n: k for n, k in cand_keys.items() if n not in selected}
-        stats = candidate_stats(reg_c, keys_fixed, rest, candidates.columns, candidates.infos,
-                                n_boot=n_boot, seed=seed, max_effects=max_effects - len(selected))
-        steps.append(SelectionStep(**step, conditional=tuple(_conditional_row(r) for r in stats)))
-        for r in stats:
+        out = candidate_stats(reg_c, keys_fixed, rest, candidates.columns, candidates.infos,
+                              n_boot=n_boot, seed=seed, max_effects=max_effects - len(selected))
+        for r in out:
             conditional[r.effect].append(ConditionalResult(tuple(selected),
                                                            r.heldout_error_reduction,
                                                            r.significant))
-    if len(selected) > 1:
-        selected, fitted, theta_final, final_preds = rejudge_earlier(
+        return out
+
+    twins = {t.effect for t in scr.strength_twins}
+    for _ in range(1 + MAX_DROPS):     # a drop (rejudge_earlier) makes room again
+        while len(selected) < max_effects:
+            rejected = rejected_against(acceptance, selected)
+            pairs = scr.indistinguishable if not selected else ()
+            contenders = contenders_for(stats, selected, rejected, max_contenders, pairs, twins)
+            if not contenders:
+                break
+            rivals = {r.effect for r in contenders} - {r.effect for r in contenders_for(
+                stats, selected, rejected, max_contenders, pairs, twins, with_rivals=False)}
+            prev_vals = _values(fitted, candidates, selected)
+            tried = []
+            for r in contenders:
+                start = dict(prev_vals)
+                for p, est in r.params.items():
+                    start[f"{r.effect}.{p}"] = float(est.value)
+                sel = selected + [r.effect]
+                # every contender fully refined: AICc compares the models at their optima,
+                # not after one step from the linear estimates (which favours the faster-
+                # converging)
+                fit = refine_replays(problem, pool, res, candidates, sel, start,
+                                     nuisance_columns(theta_final),
+                                     iterations=refine_iterations)
+                score, rss = refined_score(fit, sel)
+                tried.append((score, r, fit))
+                refined_fits[r.effect].append(RefinedFit(tuple(selected), score, rss,
+                                                         dict(fit.fitted[r.effect])))
+            tried.sort(key=lambda t: t[0])
+            chosen = None
+            judged = set(judging_order([(t[0], t[1].effect) for t in tried], rivals))
+            for _, cand, fit in tried:            # by AICc; the first that passes is added
+                if cand.effect not in judged:
+                    continue                      # a rival only wins, it is no fallback
+                # the term's own replays: with and without it at the same (co-refitted) θ
+                before = without_term(pool, res, candidates, fit, selected)
+                acc = replace(judge(windows, channels, res.sigma,
+                                    candidates.infos[cand.effect], fit.fitted[cand.effect],
+                                    before, fit.preds), given=tuple(selected))
+                acceptance.append(acc)
+                if acc.accepted:
+                    chosen = (cand, fit)
+                    break
+            if chosen is None:
+                continue                          # the next significant candidates, if any
+            best, fit = chosen
+            selected.append(best.effect)
+            fitted, theta_final, final_preds = fit.fitted, dict(fit.theta), fit.preds
+            step = dict(added=best.effect, contenders=tuple(t[1].effect for t in tried),
+                        contender_aicc=tuple(t[0] for t in tried), refine=fit.log)
+            if len(selected) >= max_effects:
+                steps.append(SelectionStep(**step))
+                break
+            stats = conditional_test(fit)
+            steps.append(SelectionStep(**step,
+                                       conditional=tuple(_conditional_row(r) for r in stats)))
+        if len(selected) < 2:
+            break
+        selected, fitted, theta_final, final_preds, refit = rejudge_earlier(
             problem, pool, res, candidates, selected, fitted, theta_final, final_preds,
             acceptance, refine_iterations)
+        if refit is None:
+            break
+        stats = conditional_test(refit)   # room again: the rest against the reduced model
     return Refinement(tuple(selected), fitted, theta_final, tuple(final_preds),
                       _final_ranking(scr.ranking, selected, fitted, refined_fits, conditional,
                                      acceptance),
@@ -377,5 +397,5 @@ def _refined_heldout(problem, candidates, res, scr, selected, fitted,
 
 
 __all__ = ["Refinement", "refine", "contenders_for", "is_rival", "judging_order",
-           "rejected_against", "rejudge_earlier",
+           "rejected_against", "rejudge_earlier", "MAX_DROPS",
            "without_term", "SECANT_BOUNDS"]
