@@ -144,13 +144,15 @@ def test_structure_the_screening_still_finds_after_the_addition_is_not_explained
 
 def test_a_candidate_added_after_an_earlier_rejection_is_not_reported_as_rejected():
     """Rejected against the calibrated model, added once another effect was: the verdict
-    does not call it 'not added'; a rejection against the new model says which model."""
+    does not call it 'not added'; a rejection against the new model says which model; an
+    addition dropped against the final model is called dropped."""
     worse = ("its replays make the channels it is credited with worse: grf_z +5.5 %",)
     acc = (Acceptance("knee_spring", False, {}, (), worse),
            Acceptance("force_sensor_bias", True, {}, ()),
            Acceptance("knee_spring", True, {}, (), (), (), ("force_sensor_bias",)),
            Acceptance("joint_friction", False, {}, (), worse, (), ("force_sensor_bias",
-                                                                   "knee_spring")))
+                                                                   "knee_spring")),
+           Acceptance("inertial_drag", False, {}, (), worse, (), ("knee_spring",), True))
     v = VerdictInputs(("force_sensor_bias", "knee_spring"),
                       (_ranked("force_sensor_bias"), _ranked("knee_spring")), None, _empty(),
                       acceptance=acc)
@@ -158,3 +160,4 @@ def test_a_candidate_added_after_an_earlier_rejection_is_not_reported_as_rejecte
     assert "knee_spring was reported" not in text
     assert ("joint_friction was reported, not added (" + worse[0]
             + ") — judged with force_sensor_bias, knee_spring added") in text
+    assert "inertial_drag was added, then dropped (" + worse[0] in text

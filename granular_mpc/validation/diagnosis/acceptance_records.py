@@ -49,6 +49,8 @@ class Acceptance(Record):
         given: the effects already added when it was judged (empty: judged against the
             calibrated model). A rejection holds against that model only: after a later
             addition the candidate may be refined and judged again.
+        dropped: it had been added, and was dropped when judged again against the final
+            model (``given``: the others).
     """
 
     effect: str
@@ -58,6 +60,7 @@ class Acceptance(Record):
     reasons: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
     notes: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
     given: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
+    dropped: bool = field(default=False, metadata=OMIT_EMPTY)
 
 
 @dataclass(frozen=True)

@@ -197,8 +197,7 @@ def rejudge_earlier(problem: Problem, pool: ReplayPool, res: Residuals,
         if acc.accepted:
             acceptance.append(acc)
             continue
-        acceptance.append(replace(acc, reasons=acc.reasons + (
-            f"added earlier, dropped once {', '.join(others)} had been added",)))
+        acceptance.append(replace(acc, dropped=True))
         refit = refine_replays(problem, pool, res, candidates, others,
                                _values(fitted, candidates, others), nuisance_columns(theta),
                                iterations=refine_iterations)

@@ -245,7 +245,8 @@ def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
             co = "; ".join(f"{k.text} ({k.status})" if k.status != "ok" else k.text
                            for k in a.coefficients) or "–"
             who = a.effect + (f" (given {', '.join(a.given)})" if a.given else "")
-            lines.append(f"| {who} | {'yes' if a.accepted else 'no'} | {ch} | {co} | "
+            added = "dropped" if a.dropped else ("yes" if a.accepted else "no")
+            lines.append(f"| {who} | {added} | {ch} | {co} | "
                          f"{'; '.join(a.reasons) or '–'} |")
     if d.indistinguishable:
         lines += ["", "## Candidates the data cannot tell apart", ""]

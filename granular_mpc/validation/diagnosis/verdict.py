@@ -216,7 +216,8 @@ VERDICT_RULES: Sequence[Callable[[VerdictInputs], Verdict | None]] = (
 def rejected_sentence(v: VerdictInputs) -> str:
     """The refined contenders reported but not added, with why, and the candidates that
     are a terrain-strength mismatch in disguise ("" if none)."""
-    out = [f"{a.effect} was reported, not added ({'; '.join(a.reasons)})"
+    out = [f"{a.effect} was {'added, then dropped' if a.dropped else 'reported, not added'}"
+           f" ({'; '.join(a.reasons)})"
            + (f" — judged with {', '.join(a.given)} added" if a.given else "")
            for a in v.acceptance if not a.accepted and a.effect not in v.selected]
     out += [f"{t.sentence()}; not added" for t in v.strength_twins
