@@ -140,6 +140,16 @@ def is_rival(r: CandidateStats, twins: Collection[str] = ()) -> bool:
         "heldout_error_reduction_stance")})
 
 
+def replay_with(pool: ReplayPool, res: Residuals, candidates: CandidateSet,
+                fitted: Mapping[str, Mapping[str, float]], theta: Mapping[str, float],
+                effects: Sequence[str]) -> tuple[dict, ...]:
+    """Per-window replay outputs of the calibrated model at θ ``theta`` with ``effects``
+    at their ``fitted`` values (the others left out)."""
+    specs = [(candidates.infos[s], dict(fitted[s])) for s in effects]
+    variant = effect_variant(specs, Variant(theta={**res.base.theta, **theta}))
+    return tuple(pool.run({"without": variant})["without"])
+
+
 def without_term(pool: ReplayPool, res: Residuals, candidates: CandidateSet,
                  fit: GaussNewtonFit, previous: Sequence[str]) -> tuple[dict, ...]:
     """Per-window replay outputs of a refined model without its newest term: the
@@ -151,9 +161,7 @@ def without_term(pool: ReplayPool, res: Residuals, candidates: CandidateSet,
     channels too (a force-sensor bias refitted with ζ shifts ``grf_x`` by ~1 %), which is
     no evidence for or against the term.
     """
-    specs = [(candidates.infos[s], dict(fit.fitted[s])) for s in previous]
-    variant = effect_variant(specs, Variant(theta={**res.base.theta, **fit.theta}))
-    return tuple(pool.run({"without": variant})["without"])
+    return replay_with(pool, res, candidates, fit.fitted, fit.theta, previous)
 
 
 def rejected_against(acceptance: Sequence[Acceptance], selected: Sequence[str]) -> set[str]:
@@ -189,9 +197,7 @@ def rejudge_earlier(problem: Problem, pool: ReplayPool, res: Residuals,
     refit = None
     for name in list(selected[:-1]):
         others = [s for s in selected if s != name]
-        specs = [(candidates.infos[s], dict(fitted[s])) for s in others]
-        variant = effect_variant(specs, Variant(theta={**res.base.theta, **theta}))
-        before = tuple(pool.run({"without": variant})["without"])
+        before = replay_with(pool, res, candidates, fitted, theta, others)
         acc = replace(judge(windows, channels, res.sigma, candidates.infos[name],
                             fitted[name], before, preds), given=tuple(others))
         if acc.accepted:
@@ -396,5 +402,5 @@ def _refined_heldout(problem, candidates, res, scr, selected, fitted,
 
 
 __all__ = ["Refinement", "refine", "contenders_for", "is_rival", "judging_order",
-           "rejected_against", "rejudge_earlier", "MAX_DROPS",
+           "rejected_against", "rejudge_earlier", "replay_with", "MAX_DROPS",
            "without_term", "SECANT_BOUNDS"]
