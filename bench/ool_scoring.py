@@ -220,18 +220,13 @@ def progress_line(row: dict) -> str:
             f"{s['channel'] or '-'} {_pct(s['lib_red'])} / {_pct(s['fb_red'])} [{secs:.0f} s]")
 
 
-def _frac(rows: list[dict], group: str, key: str, detectable_only: bool = False) -> str:
+def _frac(rows: list[dict], group: str, key: str, where: str = "") -> str:
+    """``key`` true / counted over the ``group`` cases (with ``where``: only those whose
+    score has ``where`` True); nan values are not counted."""
     sc = [score(r) for r in rows if Case(**r["case"]).group == group]
-    if detectable_only:
-        sc = [s for s in sc if s["detectable"] is True]
+    if where:
+        sc = [s for s in sc if s.get(where) is True]
     vals = [s[key] for s in sc if key in s and not (isinstance(s[key], float) and math.isnan(s[key]))]
-    return f"{sum(bool(v) for v in vals)}/{len(vals)}" if vals else "n/a"
-
-
-def _frac_where(rows: list[dict], group: str, key: str, where: str) -> str:
-    """``key`` true / counted, over the ``group`` cases where ``where`` is True."""
-    sc = [score(r) for r in rows if Case(**r["case"]).group == group]
-    vals = [s[key] for s in sc if s.get(where) is True]
     return f"{sum(bool(v) for v in vals)}/{len(vals)}" if vals else "n/a"
 
 
@@ -254,9 +249,9 @@ def targets_table(rows: list[dict]) -> str:
              f"| out-of-library: proposal (or user term) ranked first, affected error −50 % | {_frac(rows, 'ool', 'found')} | ≥ 70 % |",
              f"| … found by the proposal / by the user term | {_frac(rows, 'ool', 'found_proposal')} / {_frac(rows, 'ool', 'found_user')} | |",
              f"| … detectable cases (the true model: affected error −50 %) | {_frac(rows, 'ool', 'detectable')} | |",
-             f"| … found among the detectable (proposal / user term) | {_frac(rows, 'ool', 'found', True)} ({_frac(rows, 'ool', 'found_proposal', True)} / {_frac(rows, 'ool', 'found_user', True)}) | ≥ 70 % |",
+             f"| … found among the detectable (proposal / user term) | {_frac(rows, 'ool', 'found', 'detectable')} ({_frac(rows, 'ool', 'found_proposal', 'detectable')} / {_frac(rows, 'ool', 'found_user', 'detectable')}) | ≥ 70 % |",
              f"| … detectable against the calibrated model (the baseline of 'found') | {_frac(rows, 'ool', 'detectable_calibrated')} | |",
-             f"| … found among those | {_frac_where(rows, 'ool', 'found', 'detectable_calibrated')} | ≥ 70 % |",
+             f"| … found among those | {_frac(rows, 'ool', 'found', 'detectable_calibrated')} | ≥ 70 % |",
              f"| null sets: a term added | {_frac(rows, 'null', 'null_added')} | 0 % |",
              f"| added terms whose replay worsens their channel | {worsened} | 0 |"]
     return "\n".join(lines)

@@ -69,8 +69,8 @@ from ool_forms import (FORM_BY_NAME, FORMS, HIDDEN, KNEES, LIBRARY, MISMATCHES, 
                        PAIRS, PROPOSED, PROPOSED_PREFIX, QUICK_FORMS, SPEEDS, USER, Case,
                        Form, build_cases, register_forms)
 from ool_scoring import (affected_channel, case_table, figures,  # noqa: E402
-                         pair_form_detectable, progress_line, score, targets_table,
-                         truth_reduction_calibrated, user_table)
+                         progress_line, score, targets_table, truth_reduction_calibrated,
+                         user_table)
 
 
 

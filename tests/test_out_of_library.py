@@ -239,3 +239,45 @@ def test_detectable_against_the_calibrated_baseline(ool):
     assert figs["ool_detectable_calibrated_rate"] == 0.5
     assert figs["ool_found_rate_detectable_calibrated"] == 0.0
     assert "| … found among those | 0/1 |" in ool.targets_table([row, bare])
+
+
+def test_pairs_both_found_the_partner_coefficient_and_the_detectable_pairs(ool):
+    """A pair is found when its final run (the feedback run, else the library run) adds the
+    library partner and the form's term; the partner's coefficient is read in that run,
+    relative to its distance from neutral (depth_hardening: of n − 1); the pairs counted
+    'detectable alone' are those whose form's single case of the same seed is detectable."""
+    stiction = ool.FORM_BY_NAME["stiction"]
+    pair = ool.Case("pair_depth_hardening+stiction_s1", 1, "stiction", stiction.magnitudes[0],
+                    "depth_hardening:n=1.5", "n")
+    found = {"case": pair.__dict__,
+             "lib": _run("partially_explained", ["depth_hardening", "joint_friction"],
+                         {"q_left_hip_pitch": [0.04, 0.02]},
+                         fitted={"depth_hardening": {"n": 1.9}}),
+             "proposal": None,
+             "fb": _run("missing_effect", ["depth_hardening", stiction.user],
+                        {"q_left_hip_pitch": [0.04, 0.015]},
+                        fitted={"depth_hardening": {"n": 1.6},
+                                stiction.user: {"tau_s": 0.22}})}
+    s = ool.score(found)
+    assert s["both_found"] and s["partner_rank1"]
+    assert s["partner_coef_err"] == pytest.approx(0.2)          # (1.6 − 1.5) / (1.5 − 1)
+    missed = {**found, "case": ool.Case("pair_depth_hardening+stiction_s2", 2, "stiction",
+                                        stiction.magnitudes[0], "depth_hardening:n=1.5",
+                                        "n").__dict__,
+              "fb": _run("partially_explained", ["depth_hardening"],
+                         {"q_left_hip_pitch": [0.04, 0.039]},
+                         fitted={"depth_hardening": {"n": 1.45}})}
+    m = ool.score(missed)
+    assert not m["both_found"] and m["partner_coef_err"] == pytest.approx(-0.1)
+    single = {"case": ool.Case("stiction_m0_s1", 1, "stiction", stiction.magnitudes[0]).__dict__,
+              "lib": _run("no_significant_missing_effect", [], {}), "proposal": None,
+              "fb": _run("missing_effect", [stiction.user], {"q_left_hip_pitch": [0.04, 0.01]}),
+              "truth_replay": {"q_left_hip_pitch": [0.04, 0.012]}}
+    assert ool.score(single)["detectable"] is True
+    figs = ool.figures([found, missed, single])
+    assert figs["pair_both_found_rate"] == 0.5
+    assert figs["pair_both_found_rate_detectable"] == 1.0      # seed 2 has no single case
+    table = ool.targets_table([found, missed, single])
+    assert "| both effects of a pair found | 1/2 |" in table
+    assert "| … among the pairs whose form is detectable alone (its single case, same seed) | 1/1 |" in table
+    assert "| main coefficient within 15 % (pair member) | 1/2 |" in table
