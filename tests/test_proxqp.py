@@ -122,6 +122,34 @@ def test_non_finite_data_is_a_status():
     assert sol.status is QPStatus.NON_FINITE
 
 
+def _buffered(n: int, n_in: int):
+    """A QP whose arrays are views of one buffer (as the MPC's): H, g, C, l, u."""
+    buf = np.zeros(n * n + n + n_in * n + 2 * n_in)
+    ends = np.cumsum([0, n * n, n, n_in * n, n_in, n_in])
+    H, g, C, l, u = (buf[a:b] for a, b in zip(ends[:-1], ends[1:]))
+    return QPProblem(H.reshape(n, n), g, None, None, C.reshape(n_in, n), l, u, buffer=buf)
+
+
+def test_the_one_buffer_check_accepts_a_free_side_and_rejects_nan():
+    """With ``QPProblem.buffer`` the finiteness check is one sum; free sides at ±inf make
+    that sum non-finite, and the per-array check must then still accept the problem
+    (without a warning); NaN in the data or in a bound is still a NON_FINITE status."""
+    p = _buffered(2, 2)
+    p.H[:] = np.eye(2)
+    p.g[:] = (-1.0, -2.0)
+    p.C[:] = np.eye(2)
+    p.l[:] = -np.inf
+    p.u[:] = (0.5, np.inf)                  # a row free on both sides: −inf + inf in the sum
+    sol = ProxQPSolver(2, 0, 2, eps_abs=1e-9).solve(p)
+    assert sol.status.ok
+    np.testing.assert_allclose(sol.x, [0.5, 2.0], atol=1e-6)
+    p.u[0] = np.nan
+    assert ProxQPSolver(2, 0, 2).solve(p).status is QPStatus.NON_FINITE
+    p.u[0] = 0.5
+    p.g[1] = np.inf
+    assert ProxQPSolver(2, 0, 2).solve(p).status is QPStatus.NON_FINITE
+
+
 def test_without_multipliers_the_solutions_are_bit_identical():
     """``multipliers=False`` (the MPC's setting) only leaves y, z out: x, status and
     iterations are the same, bit for bit, along a warm-started sequence."""

@@ -50,10 +50,6 @@ from .solvers.proxqp import ProxQPSolver, QPProblem, QPStatus
 
 BIG = 1e20
 
-#: the reduction the finiteness check of the QP buffer calls (``ndarray.sum`` without its
-#: Python wrapper)
-_add_reduce = np.add.reduce
-
 #: how the QP is built (``CentroidalMPC.assembly``)
 ASSEMBLIES = ("compiled", "numpy")
 
@@ -188,9 +184,6 @@ class MPCWork:
     #: are views of the solver's own stacked problem (:meth:`.DAQPSolver.new_problem`),
     #: which it then reads without a copy
     problem: QPProblem | None = None
-    #: with ProxSuite: the one allocation ``H, g, C, l, u, lb, ub`` are views of, so that
-    #: one reduction tells whether the whole QP is finite (None with DAQP)
-    buffer: np.ndarray | None = None
 
 
 @dataclass
@@ -293,14 +286,15 @@ class CentroidalMPC:
             for arr, value in ((qp.H, 0.0), (qp.g, 0.0), (qp.C, 0.0), (qp.l, -BIG),
                                (qp.u, 0.0), (qp.lb, 0.0), (qp.ub, 0.0)):
                 arr.fill(value)
-            buffer = None
         else:
-            # one allocation, seven views (H, g, C, l, u, lb, ub): see MPCWork.buffer
+            # one allocation, seven views (H, g, C, l, u, lb, ub): the solver's finiteness
+            # check is then one reduction (QPProblem.buffer)
             buffer = np.zeros(nu * nu + nu + n_in * nu + 2 * n_in + 2 * nu)
             ends = np.cumsum([0, nu * nu, nu, n_in * nu, n_in, n_in, nu, nu])
             H, g, C, l, u, lb, ub = (buffer[a:b] for a, b in zip(ends[:-1], ends[1:]))
             l.fill(-BIG)
-            qp = QPProblem(H.reshape(nu, nu), g, None, None, C.reshape(n_in, nu), l, u, lb, ub)
+            qp = QPProblem(H.reshape(nu, nu), g, None, None, C.reshape(n_in, nu), l, u, lb, ub,
+                           buffer=buffer)
         C = qp.C
         work = MPCWork(
             q_rep=np.tile(self._q_diag(), self.N),
@@ -310,7 +304,7 @@ class CentroidalMPC:
             H=qp.H, g=qp.g, C=C,
             C4=C.reshape(self.max_pairs, self.rows_per_pair, self.max_pairs, self.nu_pair),
             l=qp.l, u=qp.u, lb=qp.lb, ub=qp.ub,
-            block_index=np.arange(self.max_pairs), problem=qp, buffer=buffer)
+            block_index=np.arange(self.max_pairs), problem=qp)
         if self.assembly not in ASSEMBLIES:
             raise ConfigError(f"unknown MPC assembly {self.assembly!r}", key="assembly",
                               value=self.assembly, allowed=", ".join(ASSEMBLIES))
@@ -388,11 +382,6 @@ class CentroidalMPC:
             w.H += w.H.T
             w.H *= 0.5
         build_ms = (time.perf_counter() - t0) * 1e3
-        if w.buffer is not None:
-            # the whole QP is finite iff this sum is (a sum is non-finite iff a term is, or
-            # it overflows, which ±BIG and these magnitudes never do): one reduction over
-            # the one buffer instead of the solver's seven; if not, the solver checks it
-            w.problem.checked = math.isfinite(float(_add_reduce(w.buffer)))
         sol = data.solver.solve(w.problem)
         data.solves += 1
         fallback = ""

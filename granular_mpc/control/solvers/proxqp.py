@@ -108,11 +108,9 @@ class QPProblem:
     u: np.ndarray | None = None
     lb: np.ndarray | None = None
     ub: np.ndarray | None = None
-    #: set by a caller that has made sure, for the data now in the arrays, that the sizes
-    #: are the solver's and H, g, A, b, C are finite, l, u free of NaN: :class:`ProxQPSolver`
-    #: then skips its own check (the MPC checks its whole QP with one reduction over one
-    #: buffer, :class:`~granular_mpc.control.mpc.MPCWork`, and sets this each tick)
-    checked: bool = False
+    #: the one allocation every array above is a view of, if there is one (the MPC's QP):
+    #: the finiteness check then tries one reduction over it before the per-array ones
+    buffer: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -167,7 +165,13 @@ def _finite(p: QPProblem) -> bool:
     it overflows, which these magnitudes never do): one reduction per array, not two, and
     the sums added (a sum of sums is non-finite iff one of them is: inf − inf is NaN).
     The reductions are ``np.add.reduce`` / ``np.minimum.reduce`` called directly (what
-    ``ndarray.sum`` / ``min`` run, without their Python wrappers)."""
+    ``ndarray.sum`` / ``min`` run, without their Python wrappers). With ``p.buffer`` a
+    finite sum of it settles it in one reduction (every array finite, so l, u too);
+    otherwise — a free side at ±inf, or bad data — the arrays are checked one by one."""
+    if p.buffer is not None:
+        with np.errstate(invalid="ignore"):     # −inf + inf (two free sides) is NaN: fine
+            if math.isfinite(float(_add_reduce(p.buffer, None))):
+                return True
     total = 0.0
     for arr in (p.H, p.g, p.A, p.b, p.C):
         if arr is not None:
@@ -262,14 +266,12 @@ class ProxQPSolver:
         """Solve ``p`` (same dimensions every call); never raises for a numerical failure.
 
         The arrays of ``p`` are copied into ProxSuite's model, so a caller may refill the
-        same buffers for its next problem. Unless ``p.checked``, its sizes and data are
-        checked first: a non-finite problem gives :attr:`QPStatus.NON_FINITE` without
-        calling ProxSuite.
+        same buffers for its next problem. Its sizes and data are checked first: a
+        non-finite problem gives :attr:`QPStatus.NON_FINITE` without calling ProxSuite.
         """
-        if not p.checked:
-            p.check_size(self.n, self.n_eq, self.n_in)
-            if not _finite(p):
-                return QPSolution(np.zeros(self.n), QPStatus.NON_FINITE)
+        p.check_size(self.n, self.n_eq, self.n_in)
+        if not _finite(p):
+            return QPSolution(np.zeros(self.n), QPStatus.NON_FINITE)
         args = [p.H, p.g, p.A, p.b, p.C, p.l, p.u]
         if self.box:
             args += [p.lb, p.ub]
