@@ -188,3 +188,22 @@ class Interrupted(KeyboardInterrupt):
 
 
 __all__ += ["Interrupted"]
+
+
+class EffectError(ConfigError):
+    """An effect's function cannot be used as written: a terrain force with Python control
+    flow (``if``/``and``/``min`` …) on its symbolic patch state, or one that traces to NaN.
+
+    A :class:`ConfigError` (the effect file is the user's input: the command line exits 2).
+
+    Attributes:
+        effect: the effect's registered name.
+        source: the file defining the effect's function, if known.
+    """
+
+    def __init__(self, message: str, *, effect: str, source: str = "") -> None:
+        self.effect = effect
+        super().__init__(message, key="effects", value=effect, source=source)
+
+
+__all__ += ["EffectError"]

@@ -343,3 +343,23 @@ def test_garbled_urdf_is_exit_2_naming_the_file(tmp_path):
     _exit_2_no_traceback(invoke("run", tmp_path / "drop.yaml", "--out", tmp_path / "r"),
                          "yobogo10s.urdf")
     assert not (tmp_path / "r").exists()
+
+
+def test_terrain_force_with_python_if_is_exit_2_naming_effect_file_and_fix(tmp_path):
+    """Python control flow on the symbolic patch state (the force is traced once, on
+    CasADi symbols) is one bad-input message, not CasADi's "truth value" RuntimeError.
+    A subprocess: the effect must not stay registered in this test process."""
+    bad = tmp_path / "if_foot.py"
+    bad.write_text(
+        "from granular_mpc.effects import Param, register_effect\n"
+        "@register_effect('if_foot_cli', params={'a': Param(0.3, 0.0, 0.9, '-', 'x')})\n"
+        "def if_foot_cli(o, s, p):\n"
+        "    if s.foot < 0.5:\n"
+        "        return (-p['a'] * s.f_terrain[0], 0.0, 0.0)\n"
+        "    return (0.0, 0.0, 0.0)\n")
+    res = cli("synth", SAND, "--speeds", "0.15", "--steps", "1", "--effect-file", bad,
+              "--effect", "if_foot_cli:a=0.5", "--out", tmp_path / "data")
+    assert res.returncode == 2, (res.returncode, res.stderr)
+    err = res.stderr
+    assert "Traceback" not in err and "unexpected RuntimeError" not in err
+    assert str(bad) in err and "'if_foot_cli'" in err and "o.if_else(cond, a, b)" in err

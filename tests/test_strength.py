@@ -1,6 +1,7 @@
 """A terrain-strength mismatch in disguise (``validation.diagnosis.strength``): a candidate
-whose evidence a φ_s column explains as well is not significant and the verdict says it is a
-calibration matter; a real effect correlated with φ_s keeps its evidence."""
+whose evidence a φ_s column explains as well is not significant and the verdict says the data
+cannot tell a φ_s mismatch from an effect that strengthens the sand like one; a real effect
+correlated with φ_s keeps its evidence."""
 from __future__ import annotations
 
 import math
@@ -65,7 +66,7 @@ def test_a_strength_mismatch_is_not_a_missing_effect(seed):
     assert tw is not None and tw.given_strength_heldout_error_reduction < 0.02
     assert tw.strength_values["phi_s_deg"] == pytest.approx(33.0, abs=0.5)
     assert tw.file_values["phi_s_deg"] == pytest.approx(38.0)
-    assert "calibration matter" in tw.sentence()
+    assert "EITHER the sand is weaker than the terrain file says" in tw.sentence()
     assert f"phi_s_deg ≈ {tw.strength_values['phi_s_deg']:.1f}" in tw.sentence()
 
 
@@ -101,7 +102,8 @@ def test_the_verdict_names_the_twin_and_adds_nothing():
     assert "terrain-strength mismatch" in v.text and "phi_s_deg ≈ 33.3" in v.text
     best = best_candidate_statement(VerdictInputs((), (r,), None, empty, strength_twins=(tw,)))
     assert best.startswith("the best candidate, depth_hardening, is only the closest proxy")
-    assert "calibration matter" in best and "is the answer" not in best
+    assert "terrain-strength mismatch" in best and "OR a missing effect" in best
+    assert "is the answer" not in best
     # the signs of the held-out changes: 26 % less alone, 3.7 % more beside φ_s
     assert "alone by −26.0 %" in tw.sentence() and "beside φ_s by +3.7 %" in tw.sentence()
 

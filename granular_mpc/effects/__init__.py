@@ -12,6 +12,9 @@ them as candidates (``granular-mpc diagnose``); a terrain config switches terrai
   ``register_effect`` and the decorators of the other kinds, ``load_effect_file``).
 * :mod:`.params`, :mod:`.state`: parameter specs; what an effect reads (``PatchState``,
   ``SensorContext``).
+* :mod:`.tracing`: a terrain force traced on CasADi symbols (what a terrain model
+  compiles), with one :class:`~granular_mpc.exceptions.EffectError` for Python control flow
+  on the patch state.
 * the library, one file per kind: :mod:`.terrain_force` (``inertial_drag``, ``cohesion``,
   ``depth_hardening``, ``elastic_unloading``), :mod:`.joint` (``joint_friction``),
   :mod:`.sensor` (``force_sensor_bias``), :mod:`.geometry` (``terrain_slope``), each with

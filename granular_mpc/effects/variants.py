@@ -82,6 +82,7 @@ def _one_foot(fn: Callable, side: str) -> Callable:
         f = fn(o, s, p)
         return (mask * f[0], mask * f[1], mask * f[2])
 
+    on_one_foot.__wrapped__ = fn      # errors name the base's source file
     return on_one_foot
 
 

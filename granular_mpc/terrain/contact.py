@@ -31,6 +31,7 @@ import numpy as np
 
 from ..codegen import compile_functions
 from ..effects import Effect, PatchState
+from ..effects.tracing import trace_terrain_force
 
 #: per-foot kinematic input: p_W_F (3), R_W_F column-major (9), v_W_F (3), ω_W (3)
 N_KIN = 18
@@ -216,7 +217,7 @@ class CompiledContact:
                                 depth_rate=depth_rate)
             for eff, _values in effects:
                 p = {name: th[f"{eff.name}.{name}"] for name in eff.params}
-                fe = eff.force(o, pstate, p)
+                fe = trace_terrain_force(eff, o, pstate, p)
                 force = tuple(force[i] + on * fe[i] for i in range(3))
             new_e = tuple(ca.if_else(touching, law_out.displacement[i], 0.0) for i in range(3))
             new_c0 = tuple(ca.if_else(touching, c0_new[i], c0[i]) for i in range(3))

@@ -87,17 +87,38 @@ class StrengthTwin(Record):
     file_values: Mapping[str, float]
 
     def sentence(self) -> str:
-        """The twin in words (signed changes of the held-out error: −26 % is a reduction)."""
+        """The twin in words (signed changes of the held-out error: −26 % is a reduction).
+
+        The data cannot tell a sand of another strength from a missing effect that
+        strengthens (or weakens) the sand as a different φ_s does, so the sentence gives
+        both readings and how to decide: measure φ_s independently.
+        """
         fitted = ", ".join(f"{k} ≈ {v:.1f}" for k, v in self.strength_values.items())
         filed = ", ".join(f"{v:.1f}" for v in self.file_values.values())
         values = f" ({fitted}; terrain file {filed})" if fitted else ""
+        sign = self._direction()
+        sand = {1: "stronger than", -1: "weaker than"}.get(sign, "of another strength than")
+        verb = {1: "strengthens", -1: "weakens"}.get(sign, "strengthens or weakens")
+        phi = {1: "a higher", -1: "a lower"}.get(sign, "another")
         return (f"{self.effect} is indistinguishable from a terrain-strength mismatch: φ_s "
-                f"free{values} changes the held-out error by "
+                f"free changes the held-out error by "
                 f"{_signed(self.strength_heldout_error_reduction)}, {self.effect} alone by "
                 f"{_signed(self.heldout_error_reduction)}, {self.effect} beside φ_s by "
                 f"{_signed(self.given_strength_heldout_error_reduction)} (ΔAICc "
-                f"{self.given_strength_delta_aicc:.0f}): a calibration matter, not a missing "
-                "effect — correct φ_s in the terrain file")
+                f"{self.given_strength_delta_aicc:.0f}). The data cannot tell which of two "
+                f"readings holds: EITHER the sand is {sand} the terrain file says{values} — "
+                "check φ_s independently (a penetration test, or a calibration on other "
+                "data) and correct the terrain file only if that confirms it — OR a missing "
+                f"effect {verb} the sand the same way {phi} φ_s does ({self.effect} is one "
+                "such proxy)")
+
+    def _direction(self) -> int:
+        """+1 / −1 when the fitted φ_s is above / below the file's, 0 if unknown or equal."""
+        key = next((k for k in self.strength_values if k in self.file_values), None)
+        if key is None:
+            return 0
+        diff = self.strength_values[key] - self.file_values[key]
+        return int(diff > 0) - int(diff < 0)
 
 
 def _signed(reduction: float) -> str:

@@ -272,8 +272,9 @@ class Diagnosis(Record):
         proposal: a term proposed from the force equation error (:mod:`.proposal`; its
             effect file is in ``out_dir``), None when not computed.
         strength_twins: candidates that passed every test but that a terrain-strength
-            (φ_s) mismatch of the model file explains as well (:mod:`.strength`): a
-            calibration matter, not added.
+            (φ_s) mismatch of the model file explains as well (:mod:`.strength`): not
+            added; either φ_s differs from the file or an effect strengthens/weakens the
+            sand like it (the data cannot tell).
     """
 
     data: str

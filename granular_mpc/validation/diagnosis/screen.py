@@ -396,7 +396,7 @@ def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, 
             if tw is not None:
                 twins.append(tw)
     # a twin must not come back as a leader's indistinguishable partner (refine refines
-    # partners whether significant or not): a calibration matter is no contender
+    # partners whether significant or not): a strength twin is no contender
     gone = {t.effect for t in twins}
     pairs = [p for p in pairs if not gone & set(p.effects)]
     return Screening(design.builder, design.regressions, design.bounds, design.base_keys,

@@ -6,8 +6,9 @@ equation error it trades off against depth-dependent effects, §3.1). A plant wh
 is weaker or stronger than the file says then leaves a residual that a depth-dependent
 candidate imitates: a φ_s of 33° instead of 38° was answered with ``depth_hardening``
 n = 1.18, accepted as the answer (held-out −26 %, replays better), because the
-capacity–depth curve of a lower φ_s *is* a softer depth law. Such a fit is a calibration
-matter, not a missing effect.
+capacity–depth curve of a lower φ_s *is* a softer depth law. The data cannot tell such a
+φ_s mismatch from a missing effect that weakens (strengthens) the sand as a lower (higher)
+φ_s does: the twin's sentence gives both readings and asks for φ_s measured independently.
 
 The test (:func:`strength_twin`): the φ_s column (the calibrated model's replays with
 φ_s one step higher, :func:`add_strength_sensitivity`) joins the model, and the candidate
