@@ -367,3 +367,96 @@ def test_reused_plant_data_replays_like_a_fresh_one(clean_windows):
         assert set(again) == set(fresh)
         for c, val in fresh.items():
             assert np.array_equal(np.asarray(again[c]), np.asarray(val)), (w.index, c)
+
+
+def _user_delay(cols, p, ctx):
+    """Torque stream stamped d late, written without an inverse: τ_meas(t) = τ(t − d)."""
+    t = np.asarray(ctx.time, dtype=float)
+    return {f"tau_{j}": np.interp(t - p["d"], t, np.asarray(cols[f"tau_{j}"], dtype=float))
+            for j in ctx.joint_names}
+
+
+def test_a_torque_delay_at_its_true_value_restores_the_replay(clean_windows):
+    """Data whose torque stream is 2 samples late: the measurement family's
+    ``torque_time_offset`` (which carries its inverse) at the true delay brings the replay
+    back to the plant's; the same map without an inverse cannot be replayed and says so."""
+    import dataclasses
+
+    from granular_mpc.effects import Param, effect_info
+    from granular_mpc.effects.measurement import register_measurement
+    from granular_mpc.validation.diagnosis.candidates import (
+        build_candidates, check_sensor_candidates, drop_uninvertible_sensor_candidates)
+    from granular_mpc.validation.replay import check_sensor_inversion
+
+    register_measurement()
+    info = effect_info("torque_time_offset")
+    ds, rm, ws = clean_windows
+    delay = 0.004                                   # 2 samples at 500 Hz
+    trials = {}
+    for name, df in ds.trials.items():
+        df = df.copy()
+        t = df["time"].to_numpy()
+        for c in df.columns:
+            if c.startswith("tau_"):
+                df[c] = np.interp(t - delay, t, df[c].to_numpy())
+        trials[name] = df
+    late = dataclasses.replace(ds, trials=trials)
+    wl = stance_windows(late, rm.biped, contact_stiffness=rm.contact_stiffness)
+    k = 3
+    ref = replay_granular(rm, ws[k], Variant())
+    off = replay_granular(rm, wl[k], Variant())
+    fix = replay_granular(rm, wl[k], effect_variant([(info, {"delay": delay})]))
+
+    def err(out):
+        return float(np.sqrt(np.mean((out["q_right_knee"] - ref["q_right_knee"]) ** 2)))
+
+    assert err(fix) < 0.01 * err(off)
+    # written by a user without an inverse: refused up front, dropped as a candidate
+    user = _user_sensor("_test_user_delay", _user_delay,
+                        {"d": Param(0.004, 0.0, 0.05, "s", "torque stream lag")})
+    with pytest.raises(ConfigError, match="_test_user_delay.*cannot be inverted"):
+        check_sensor_inversion([(user, {"d": delay})], wl[k], rm.biped.joint_names)
+    cands = check_sensor_candidates(build_candidates(["_test_user_delay", "torque_time_offset"]),
+                                    wl[k], rm.biped.joint_names)
+    kept, warns = drop_uninvertible_sensor_candidates(cands, wl[k], rm.biped.joint_names)
+    assert list(kept.infos) == ["torque_time_offset"]
+    assert len(warns) == 1 and "_test_user_delay" in warns[0] and "inverse=" in warns[0]
+
+
+def test_a_trunk_attitude_bias_at_its_true_value_restores_the_replay(clean_windows):
+    """Data whose trunk attitude reads 1.5° too pitched: every window starts with the trunk
+    tilted; the measurement family's ``trunk_attitude_bias`` at the true pitch starts it
+    level again and the replay comes back to the unbiased data's."""
+    import dataclasses
+
+    from granular_mpc.effects import effect_info
+    from granular_mpc.effects.measurement import register_measurement
+    from granular_mpc.rotations import quat_mul_rows_wxyz, quat_rows_wxyz_from_rotvec
+
+    register_measurement()
+    info = effect_info("trunk_attitude_bias")
+    ds, rm, ws = clean_windows
+    pitch = np.deg2rad(1.5)
+    cols = ["base_qw", "base_qx", "base_qy", "base_qz"]
+    trials = {}
+    for name, df in ds.trials.items():
+        df = df.copy()
+        q = df[cols].to_numpy()
+        qb = np.repeat(quat_rows_wxyz_from_rotvec([[0.0, pitch, 0.0]]), len(q), axis=0)
+        df[cols] = quat_mul_rows_wxyz(q, qb)
+        trials[name] = df
+    tilted = dataclasses.replace(ds, trials=trials)
+    wt = stance_windows(tilted, rm.biped, contact_stiffness=rm.contact_stiffness)
+    k = 3
+    ref = replay_granular(rm, ws[k], Variant())
+    off = replay_granular(rm, wt[k], Variant())
+    fix = replay_granular(rm, wt[k], effect_variant([(info, {"roll": 0.0, "pitch": pitch})]))
+
+    def err(out, c):
+        return float(np.sqrt(np.mean((out[c] - ref[c]) ** 2)))
+
+    # measured: grf_x 3.04 → 0.69 N, grf_z 2.95 → 0.28 N, hip pitch 6.1 → 0.23 mrad,
+    # left knee 15.0 → 1.1 mrad, intrusion_x 1.27 → 0.03 mm
+    for c, share in (("grf_x", 0.35), ("grf_z", 0.2), ("q_right_hip_pitch", 0.1),
+                     ("q_left_knee", 0.15), ("intrusion_x", 0.1)):
+        assert err(fix, c) < share * err(off, c), c

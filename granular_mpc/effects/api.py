@@ -40,10 +40,12 @@ from .state import PatchState, SensorContext
 
 def _decorator(kind: str, name: str, params: Mapping[str, Param] | None, replace: bool,
                main: str | None, neutral: Mapping[str, float] | None,
-               depends_on: Sequence[str], tags: Sequence[str]) -> Callable[[Callable], Callable]:
+               depends_on: Sequence[str], tags: Sequence[str],
+               inverse: Callable | None = None) -> Callable[[Callable], Callable]:
     def deco(fn: Callable) -> Callable:
         register(EffectInfo(name, kind, dict(params or {}), fn, (fn.__doc__ or "").strip(),
-                            main or "", dict(neutral or {}), tuple(depends_on), tuple(tags)),
+                            main or "", dict(neutral or {}), tuple(depends_on), tuple(tags),
+                            inverse),
                  replace_existing=replace)
         return fn
 
@@ -85,15 +87,24 @@ def register_joint_effect(name: str, *, params: Mapping[str, Param] | None = Non
 def register_sensor_effect(name: str, *, params: Mapping[str, Param] | None = None,
                            replace: bool = False, main: str | None = None,
                            neutral: Mapping[str, float] | None = None,
-                           depends_on: Sequence[str] = (), tags: Sequence[str] = ()):
+                           depends_on: Sequence[str] = (), tags: Sequence[str] = (),
+                           inverse: Callable | None = None):
     """Decorator registering ``fn(cols, p, ctx) -> {column: values}`` as a sensor effect.
 
     ``cols`` maps format-v1 column names to NumPy arrays (one trial, or a replayed
     prediction of it); ``ctx`` is a :class:`SensorContext` (stance labels, time, joint
     names). Return the columns the sensor changes (new arrays; never modify ``cols``).
-    Arguments as for :func:`register_effect`.
+
+    A replay inverts the map on the columns it is driven by (``tau_*``, the initial
+    ``q_*``/``dq_*``). Without ``inverse`` that is solved sample by sample (Newton), which
+    works for maps of each sample on its own (offsets, gains, any smooth function of the
+    sample's columns); a map that *mixes samples* — a time shift of one sample or more, a
+    filter — cannot be solved so, and needs ``inverse(cols, p, ctx) -> {column: true
+    values}`` (same signature; the measured columns in, the true ones out). Other arguments
+    as for :func:`register_effect`.
     """
-    return _decorator("sensor", name, params, replace, main, neutral, depends_on, tags)
+    return _decorator("sensor", name, params, replace, main, neutral, depends_on, tags,
+                      inverse)
 
 
 def register_geometry_effect(name: str, *, params: Mapping[str, Param] | None = None,

@@ -15,15 +15,21 @@ identifies them jointly with the physics candidates. Each has its own signature:
 * ``force_sensor_gain`` — per world axis, ``grf_i`` reads (1 + g_i)·F_i (the bias is the
   library's ``force_sensor_bias``);
 * ``torque_time_offset`` — ``tau_*`` is stamped d [s] late relative to the kinematics:
-  measured τ(t) = τ_true(t − d) (linear interpolation, held at the ends).
+  measured τ(t) = τ_true(t − d) (linear interpolation, held at the ends). The map mixes
+  samples, so it carries its inverse (:func:`torque_time_offset_inverse`); the others
+  are inverted sample by sample.
 
-Not here: a trunk-attitude bias (the base columns drive a replay as measured and are not
-inverted, so a bias on them cannot be identified by replays).
+* ``trunk_attitude_bias`` — the trunk orientation estimate is off by a small roll and
+  pitch: the measured ``base_q*`` is q ⊗ q_b, q_b = R_x(roll)·R_y(pitch) in the trunk
+  frame (an IMU mounted or levelled askew, an estimator's attitude drift); every replay
+  starts with the trunk tilted (a replay inverts the map on its initial orientation,
+  ``validation/replay/measurement.py``), which shows in the horizontal foot forces and
+  the hip angles. It carries its inverse (q_meas ⊗ q_b⁻¹).
 
 **Opt-in.** Importing this module registers the family (:func:`register_measurement`,
 idempotent); :mod:`granular_mpc.effects` does not import it, so the default candidates of
-``diagnose`` (every registered effect) stay the library's seven — the family has 22
-parameters, 19 of which change a replay's inputs and need replays of their own. Pass
+``diagnose`` (every registered effect) stay the library's seven — the family has 24
+parameters, 21 of which change a replay's inputs and need replays of their own. Pass
 ``candidates=[…library…, *MEASUREMENT]`` (or ``--effect-file`` this module's path).
 
 Parameters are named per joint of the biped (``yobogo10s``: :data:`JOINTS`); on a robot
@@ -35,6 +41,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..columns import BASE_QUATERNION
+from ..rotations import quat_mul_rows_wxyz, quat_rows_wxyz_from_rotvec
 from .api import register_sensor_effect
 from .params import Param
 from .registry import registered_names
@@ -45,7 +53,7 @@ JOINTS = ("left_hip_abd", "left_hip_pitch", "left_knee", "right_hip_abd", "right
           "right_knee")
 #: the family's effect names
 MEASUREMENT = ("torque_gain", "torque_offset", "encoder_offset", "force_sensor_gain",
-               "torque_time_offset")
+               "torque_time_offset", "trunk_attitude_bias")
 TAG = "measurement"
 
 
@@ -89,6 +97,53 @@ def torque_time_offset(cols, p, ctx: SensorContext):
             for j in ctx.joint_names if f"tau_{j}" in cols}
 
 
+def torque_time_offset_inverse(cols, p, ctx: SensorContext):
+    """The true torques under :func:`torque_time_offset`: τ(t) ≈ τ_meas(t + d), exact for a
+    whole number of samples (away from the ends, where the stream is held); a fractional
+    shift is refined by :data:`SHIFT_REFINEMENTS` steps x ← x − S₊(S₋x − m) (S₋ the delay,
+    S₊ the advance)."""
+    t = np.asarray(ctx.time, dtype=float)
+    d = float(p["delay"])
+    out = {}
+    for j in ctx.joint_names:
+        c = f"tau_{j}"
+        if c not in cols:
+            continue
+        m = _col(cols, c)
+        x = np.interp(t + d, t, m)
+        for _ in range(SHIFT_REFINEMENTS):
+            x = x - np.interp(t + d, t, np.interp(t - d, t, x) - m)
+        out[c] = x
+    return out
+
+
+#: refinement steps of a fractional shift's inverse (:func:`torque_time_offset_inverse`)
+SHIFT_REFINEMENTS = 3
+
+
+def _attitude(cols, p, inverse: bool) -> dict[str, np.ndarray]:
+    """``base_q*`` (w, x, y, z) right-multiplied by q_b = R_x(roll)·R_y(pitch), or by its
+    inverse."""
+    qb = quat_mul_rows_wxyz(quat_rows_wxyz_from_rotvec([[p["roll"], 0.0, 0.0]]),
+                            quat_rows_wxyz_from_rotvec([[0.0, p["pitch"], 0.0]]))
+    if inverse:
+        qb = qb * np.array([1.0, -1.0, -1.0, -1.0])
+    q = np.column_stack([_col(cols, c) for c in BASE_QUATERNION])
+    out = quat_mul_rows_wxyz(q, np.repeat(qb, len(q), axis=0))
+    return {c: out[:, i] for i, c in enumerate(BASE_QUATERNION)}
+
+
+def trunk_attitude_bias(cols, p, ctx: SensorContext):
+    """Trunk attitude estimate off by a small roll and pitch: base_q reads q ⊗ q_b,
+    q_b = R_x(roll)·R_y(pitch) (trunk frame)."""
+    return _attitude(cols, p, inverse=False)
+
+
+def trunk_attitude_bias_inverse(cols, p, ctx: SensorContext):
+    """The true trunk orientation under :func:`trunk_attitude_bias`: q_meas ⊗ q_b⁻¹."""
+    return _attitude(cols, p, inverse=True)
+
+
 def register_measurement() -> tuple[str, ...]:
     """Register the family (those of its names not yet registered); returns its names."""
     have = set(registered_names())
@@ -106,18 +161,26 @@ def register_measurement() -> tuple[str, ...]:
         (torque_time_offset, {"delay": Param(0.005, -0.05, 0.05, "s",
                                              "torque stream lag behind the kinematics")},
          "delay", ("torque rate: fast torque changes at touchdown and lift-off", "tau_*")),
+        (trunk_attitude_bias, {"roll": Param(0.01, -0.1, 0.1, "rad", "trunk roll bias"),
+                               "pitch": Param(0.01, -0.1, 0.1, "rad", "trunk pitch bias")},
+         "pitch", ("the replay's initial trunk tilt: horizontal foot forces, hip angles",
+                   "base_q*")),
     )
+    inverses = {"torque_time_offset": torque_time_offset_inverse,
+                "trunk_attitude_bias": trunk_attitude_bias_inverse}
     for fn, params, main, depends in specs:
         name = fn.__name__
         if name in have:
             continue
         register_sensor_effect(name, params=params, main=main or next(iter(params)),
                                neutral={k: 0.0 for k in params}, depends_on=depends,
-                               tags=(TAG,))(fn)
+                               tags=(TAG,), inverse=inverses.get(name))(fn)
     return MEASUREMENT
 
 
 register_measurement()
 
 __all__ = ["register_measurement", "MEASUREMENT", "JOINTS", "TAG", "torque_gain",
-           "torque_offset", "encoder_offset", "force_sensor_gain", "torque_time_offset"]
+           "torque_offset", "encoder_offset", "force_sensor_gain", "torque_time_offset",
+           "torque_time_offset_inverse", "SHIFT_REFINEMENTS", "trunk_attitude_bias",
+           "trunk_attitude_bias_inverse"]

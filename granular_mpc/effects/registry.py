@@ -72,6 +72,9 @@ class EffectInfo:
         neutral: parameter values that switch the effect off.
         depends_on: what the term scales with, in words (e.g. ``"sole speed²"``).
         tags: free labels grouping effects (a family, a variant).
+        inverse: a sensor effect's inverse ``inverse(cols, p, ctx) -> {column: true values}``
+            on the columns it changes (None: solved numerically,
+            :func:`~granular_mpc.effects.sensor.invert_sensor_effects`).
     """
 
     name: str
@@ -83,6 +86,7 @@ class EffectInfo:
     neutral: Mapping[str, float] = field(default_factory=dict)
     depends_on: tuple[str, ...] = ()
     tags: tuple[str, ...] = ()
+    inverse: Callable | None = None
 
     def resolve_params(self, given: Mapping[str, float] | None = None) -> dict[str, float]:
         """Defaults overridden by ``given``; unknown names and out-of-range values rejected."""

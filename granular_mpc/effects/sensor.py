@@ -106,36 +106,66 @@ def check_sensor_effect(info: EffectInfo, params: Mapping[str, float],
     return tuple(sorted(changed))
 
 
+#: a numerical inversion has converged when its residual is below this share of the
+#: measured column's largest magnitude (at least 1 in the column's unit)
+INVERSION_TOL = 1e-9
+#: Newton iterations of a numerical inversion (it stops earlier once converged)
+INVERSION_ITERATIONS = 30
+
+
 def invert_sensor_effects(cols: Mapping[str, np.ndarray],
                           specs: Sequence[tuple[EffectInfo, Mapping[str, float]]],
                           ctx: SensorContext, targets: Sequence[str], *,
-                          iterations: int = 6, tol: float = 1e-12) -> dict[str, np.ndarray]:
+                          strict: bool = True) -> dict[str, np.ndarray]:
     """True values of the columns ``targets`` whose image under the sensor effects of
-    ``specs`` is the measured ``cols``: x with h(x) = m, solved element by element by
-    Newton iterations with a finite-difference slope (exact in one iteration for an
-    offset, in a few for a gain; a column-wise map is assumed, cross-column maps are
-    solved approximately).
+    ``specs`` is the measured ``cols``: x with h(x) = m.
+
+    When every effect that changes a target has an ``inverse`` (:class:`EffectInfo`;
+    ``register_sensor_effect(…, inverse=…)``), the inverses are applied in the reverse
+    order. Otherwise the map is solved element by element by Newton iterations with a
+    finite-difference slope (exact in one iteration for an offset, in a few for a gain; a
+    map of each sample on its own, cross-column maps approximately): a map that mixes
+    samples (a delay of a sample or more) has a zero slope on its own sample and does not
+    converge.
 
     Args:
         cols: measured columns (every column the effects read).
         specs: ``(EffectInfo, parameter values)`` per effect (other kinds skipped).
         ctx: the rows' context.
         targets: the columns to solve for (the others are held at their measured values).
+        strict: raise when the numerical solve has not converged (else return its last
+            iterate).
 
     Returns:
         ``cols`` with ``targets`` replaced by their true values (a new dict).
+
+    Raises:
+        ConfigError: (``strict``) the numerical solve did not converge; the error names the
+            effects without an inverse and the column.
     """
     specs = [(i, p) for i, p in specs if i.kind == "sensor"]
     x = {c: np.asarray(v, dtype=float) for c, v in cols.items()}
     targets = [t for t in targets if t in x]
     if not specs or not targets:
         return x
+    acting = [(i, p) for i, p in specs if set(i.fn(dict(x), dict(p), ctx)) & set(targets)]
+    if not acting:
+        return x
+    if all(i.inverse is not None for i, _ in acting):
+        for info, p in reversed(acting):
+            true = info.inverse(dict(x), dict(p), ctx)
+            x.update({c: np.asarray(v, dtype=float) for c, v in true.items() if c in targets})
+        return x
     meas = {t: x[t].copy() for t in targets}
-    for _ in range(iterations):
+    scale = {t: max(float(np.max(np.abs(meas[t]), initial=0.0)), 1.0) for t in targets}
+    for k in range(INVERSION_ITERATIONS):
         hx = apply_sensor_effects(x, specs, ctx)
-        r = {t: hx[t] - meas[t] for t in targets}
-        if max(float(np.max(np.abs(v), initial=0.0)) for v in r.values()) <= tol:
-            break
+        r = {t: float(np.max(np.abs(hx[t] - meas[t]), initial=0.0)) for t in targets}
+        # converged to 1e-12 (in the column's unit), or after 6 steps to INVERSION_TOL of
+        # its scale: a map of each sample on its own stops where it always did
+        if max(r.values()) <= 1e-12 or (
+                k >= 6 and max(r[t] / scale[t] for t in targets) <= INVERSION_TOL):
+            return x
         eps = {t: 1e-6 * np.maximum(np.abs(x[t]), 1.0) for t in targets}
         x_eps = dict(x)
         x_eps.update({t: x[t] + eps[t] for t in targets})
@@ -143,9 +173,21 @@ def invert_sensor_effects(cols: Mapping[str, np.ndarray],
         for t in targets:
             slope = (hx_eps[t] - hx[t]) / eps[t]
             slope = np.where(np.abs(slope) > 1e-6, slope, 1.0)
-            x[t] = x[t] - r[t] / slope
+            x[t] = x[t] - (hx[t] - meas[t]) / slope
+    hx = apply_sensor_effects(x, specs, ctx)
+    worst = {t: float(np.max(np.abs(hx[t] - meas[t]), initial=0.0)) / scale[t] for t in targets}
+    if strict and max(worst.values()) > INVERSION_TOL:
+        col = max(worst, key=worst.get)
+        names = [i.name for i, _ in acting if i.inverse is None]
+        raise ConfigError(
+            f"sensor effect {', '.join(repr(n) for n in names)} cannot be inverted on "
+            f"{col!r} sample by sample (residual {worst[col]:.1e} of the column's scale "
+            f"after {INVERSION_ITERATIONS} Newton steps): a map that mixes samples (a time "
+            "shift of a sample or more, a filter) needs its inverse — "
+            "register_sensor_effect(…, inverse=fn), fn(cols, p, ctx) -> {column: true "
+            "values}", key=f"effects.{names[0] if names else '?'}", value=col)
     return x
 
 
 __all__ = ["force_sensor_bias", "apply_sensor_effects", "check_sensor_effect",
-           "invert_sensor_effects"]
+           "invert_sensor_effects", "INVERSION_TOL", "INVERSION_ITERATIONS"]

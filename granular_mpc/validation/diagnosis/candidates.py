@@ -15,8 +15,9 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ...effects import EffectInfo, all_effects, effect_info
+from ...exceptions import ConfigError
 from ..prepare import StanceWindow
-from ..replay.measurement import changes_replay, check_sensor_specs
+from ..replay.measurement import changes_replay, check_sensor_inversion, check_sensor_specs
 from ..replay.model import Variant, effect_variant
 
 #: the candidate name of the calibration's (nuisance) columns
@@ -152,6 +153,32 @@ def check_sensor_candidates(candidates: CandidateSet, window: StanceWindow,
         n for n, cols in changed.items() if changes_replay(cols)))
 
 
+def drop_uninvertible_sensor_candidates(candidates: CandidateSet, window: StanceWindow,
+                                        joint_names: Sequence[str]
+                                        ) -> tuple[CandidateSet, tuple[str, ...]]:
+    """The sensor candidates that change a replay's inputs, inverted on one window's
+    torques at each of their probe values (the values the screening replays); one that
+    cannot be inverted (a map mixing samples without an ``inverse``) is dropped with a
+    warning naming it instead of replaying as diverged.
+
+    Returns:
+        The set without them, and one warning per dropped candidate.
+    """
+    drop, warns = [], []
+    for n in sorted(candidates.replayed_sensors):
+        info = candidates.infos[n]
+        for col in candidates.columns[n]:
+            p = info.neutral_params()
+            p[col.param] = col.neutral + col.step
+            try:
+                check_sensor_inversion([(info, p)], window, joint_names)
+            except ConfigError as exc:
+                drop.append(n)
+                warns.append(f"candidate '{n}' (sensor) was not ranked: {exc}")
+                break
+    return candidates.without(drop), tuple(warns)
+
+
 def dead_candidates(candidates: CandidateSet, sens: Mapping[str, np.ndarray],
                     channels: Sequence[str]) -> dict[str, str]:
     """Candidates whose every column has a zero (or undefined) sensitivity on the scored
@@ -248,6 +275,7 @@ def kept_sensitivities(sens: Mapping[str, np.ndarray], computed: CandidateSet,
 
 
 __all__ = ["CALIBRATION", "Column", "candidate_columns", "variant_for", "CandidateSet",
+           "drop_uninvertible_sensor_candidates",
            "build_candidates", "check_sensor_candidates", "dead_candidates",
            "drop_dead_candidates", "diverged_candidates", "drop_diverged_candidates",
            "kept_sensitivities", "MAX_DIVERGED_SHARE"]

@@ -20,6 +20,7 @@ from ..dataformat import load_dataset
 from ..replay.pool import ReplayPool
 from .calibration import calibrate_model
 from .candidates import (build_candidates, check_sensor_candidates, drop_dead_candidates,
+                         drop_uninvertible_sensor_candidates,
                          drop_diverged_candidates, kept_sensitivities)
 from .coverage import (assess_candidates, calibration_text, can_calibrate,
                        drop_unreadable_sensor_candidates, fixed_calibration, measured_problem,
@@ -90,6 +91,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
                                                           problem.joint_names, ds)
     # every sensor candidate tried on the data's columns before any replay
     cands = check_sensor_candidates(cands, problem.windows[0], problem.joint_names)
+    cands, uninvertible = drop_uninvertible_sensor_candidates(cands, problem.windows[0],
+                                                              problem.joint_names)
     timing["prepare"] = _time.perf_counter() - t_start
 
     t0 = _time.perf_counter()
@@ -109,7 +112,7 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
         computed = cands
         cands, warns = drop_dead_candidates(cands, res.sens, problem.channels)
         cands, diverged = drop_diverged_candidates(cands, res.sens, res.R)
-        warns = tuple(warns) + diverged
+        warns = tuple(warns) + uninvertible + diverged
         cands, coverage = assess_candidates(problem, ds, cands, res, unreadable,
                                             calibration_text(ds), nuisance=cal.nuisance)
         warns = tuple(warns) + coverage.warnings

@@ -33,7 +33,7 @@ inputs and initial state from measured ones, checks), :mod:`.granular`, :mod:`.r
 """
 
 from .granular import replay_granular
-from .measurement import check_sensor_specs, true_window, window_columns
+from .measurement import check_sensor_inversion, check_sensor_specs, true_window, window_columns
 from .model import (MODELS, REPLAY_PARAMS, TERRAIN_THETA_CONFIG, ReplayModel, Variant,
                     build_replay_model, effect_variant, model_terrain, resolve_effect_specs)
 from .planar import replay_planar
@@ -47,4 +47,5 @@ __all__ = ["validate", "ValidationReport", "Variant", "ReplayModel", "ReplayPool
            "build_replay_model", "effect_variant", "replay_granular", "replay_rigid",
            "replay_planar", "rmse_tables", "model_terrain", "load_fitted",
            "resolve_effect_specs", "role_channels", "MODELS", "REPLAYERS", "REPLAY_PARAMS",
-           "TERRAIN_THETA_CONFIG", "check_sensor_specs", "true_window", "window_columns"]
+           "TERRAIN_THETA_CONFIG", "check_sensor_inversion", "check_sensor_specs", "true_window",
+           "window_columns"]

@@ -16,9 +16,11 @@ a sensor effect in the variant, the replay therefore
 2. applies the map to its outputs (:func:`~.outputs.replay_outputs`).
 
 An encoder zero offset at its true value then leaves the replay exactly as the plant ran.
-Not inverted: the base columns (the trunk's measured pose and twist drive the state as
-measured) and the initial force/intrusion of a buried foot (its elastic displacement is
-F/(nK), micrometres per newton).
+The trunk's initial orientation (``base_q*``) is inverted too (a trunk-attitude bias,
+:func:`~granular_mpc.effects.measurement.trunk_attitude_bias`); the feet move with it as
+with the joint angles. Not inverted: the trunk's position and twist (they drive the state
+as measured) and the initial force/intrusion of a buried foot (its elastic displacement
+is F/(nK), micrometres per newton).
 """
 
 from __future__ import annotations
@@ -30,9 +32,10 @@ import pinocchio as pin
 
 from typing import Mapping, Sequence
 
-from ...columns import joint_columns
+from ...columns import BASE_QUATERNION, joint_columns
 from ...effects import EffectInfo, SensorContext, check_sensor_effect, invert_sensor_effects
 from ...robot.model import SIDES, Biped
+from ...rotations import matrix_from_quat_xyzw, wxyz_from_xyzw, xyzw_from_wxyz
 from ..prepare import FootInit, StanceWindow, patch_points
 from .model import Variant
 
@@ -62,17 +65,27 @@ def true_window(biped: Biped, w: StanceWindow, variant: Variant | None) -> Stanc
     cols = window_columns(w)
     cols.update({c: w.tau[:, j] for j, c in enumerate(tau_cols)})
     ctx = SensorContext(np.full(w.n, w.side, dtype=object), w.time - dt, tuple(J))
-    tau_true = invert_sensor_effects(cols, specs, ctx, tau_cols)
+    tau_true = invert_sensor_effects(cols, specs, ctx, tau_cols, strict=False)
     tau = np.column_stack([tau_true[c] for c in tau_cols])
     # the initial joint state (one row, the window's start sample)
     row = {c: np.asarray(v, dtype=float)[:1] for c, v in w.columns.items()}
     row.update({c: np.array([w.q0[biped.idx_q[j]]]) for j, c in enumerate(q_cols)})
     row.update({c: np.array([w.v0[biped.idx_v[j]]]) for j, c in enumerate(dq_cols)})
+    quat0 = wxyz_from_xyzw(w.q0[3:7])               # the window's (smoothed) trunk attitude
+    row.update({c: quat0[i:i + 1] for i, c in enumerate(BASE_QUATERNION)})
     ctx0 = SensorContext(np.array([w.side], dtype=object), w.time[:1] - dt, tuple(J))
-    start = invert_sensor_effects(row, specs, ctx0, q_cols + dq_cols)
+    start = invert_sensor_effects(row, specs, ctx0, q_cols + dq_cols + list(BASE_QUATERNION),
+                                  strict=False)
     q0, v0 = w.q0.copy(), w.v0.copy()
     q0[biped.idx_q] = [start[c][0] for c in q_cols]
     v0[biped.idx_v] = [start[c][0] for c in dq_cols]
+    quat = np.array([start[c][0] for c in BASE_QUATERNION])
+    if not np.array_equal(quat, quat0):
+        q0[3:7] = xyzw_from_wxyz(quat / np.linalg.norm(quat))
+        # the trunk's linear velocity is the world velocity in the trunk frame (prepare):
+        # the same world velocity in the true frame; the gyro's rates stay as measured
+        R_meas, R_true = (matrix_from_quat_xyzw(q[3:7]) for q in (w.q0, q0))
+        v0[0:3] = R_true.T @ (R_meas @ w.v0[0:3])
     if np.array_equal(q0, w.q0) and np.array_equal(v0, w.v0) and np.array_equal(tau, w.tau):
         return w
     feet = list(w.feet)
@@ -115,11 +128,28 @@ def check_sensor_specs(specs: Sequence[tuple[EffectInfo, Mapping[str, float]]],
             for info, p in specs if info.kind == "sensor"}
 
 
+def check_sensor_inversion(specs: Sequence[tuple[EffectInfo, Mapping[str, float]]],
+                           w: StanceWindow, joint_names: Sequence[str]) -> None:
+    """Invert the sensor effects of ``specs`` on window ``w``'s torques, as a replay does
+    (:func:`true_window`), and raise if that cannot be done.
+
+    Raises:
+        ConfigError: an effect's map cannot be inverted sample by sample and has no
+            ``inverse`` (a time shift of a sample or more; the error names the effect).
+    """
+    J = list(joint_names)
+    tau_cols = joint_columns(J, "tau")
+    cols = window_columns(w)
+    cols.update({c: w.tau[:, j] for j, c in enumerate(tau_cols)})
+    ctx = SensorContext(np.full(w.n, w.side, dtype=object), w.time - _sample_period(w), tuple(J))
+    invert_sensor_effects(cols, specs, ctx, tau_cols)
+
+
 def changes_replay(changed: Sequence[str]) -> bool:
     """Whether a sensor effect changing the columns ``changed`` changes what a replay reads
     (:data:`REPLAY_INPUT_PREFIXES`), so its effect needs a replay, not just its map."""
     return any(c.startswith(REPLAY_INPUT_PREFIXES) for c in changed)
 
 
-__all__ = ["true_window", "window_columns", "check_sensor_specs", "changes_replay",
-           "REPLAY_INPUT_PREFIXES"]
+__all__ = ["true_window", "window_columns", "check_sensor_specs", "check_sensor_inversion",
+           "changes_replay", "REPLAY_INPUT_PREFIXES"]

@@ -29,7 +29,7 @@ from ..channel_coverage import channel_coverage
 from ..dataformat import load_dataset
 from ..diagnosis.result import DIAGNOSIS_FILE, FittedParameters
 from ..prepare import StanceWindow, channel_names, channel_unit, stance_windows, windows_frame
-from .measurement import check_sensor_specs
+from .measurement import check_sensor_inversion, check_sensor_specs
 from .model import (MODELS, REPLAY_PARAMS, Variant, build_replay_model, effect_variant,
                     model_terrain, resolve_effect_specs)
 from .pool import ReplayPool
@@ -156,6 +156,7 @@ def validate(data_dir: str | Path, out_dir: str | Path | None = None, *,
     channels = channel_names(J, ds.channels)          # measured channels only
     coverage = channel_coverage(ds)
     check_sensor_specs(specs, windows[0], J)      # a clear error before any replay
+    check_sensor_inversion(specs, windows[0], J)  # … and one a replay can invert
     base = Variant(theta={k: float(v) for k, v in cal.items() if k in REPLAY_PARAMS},
                    label=model)
     variants = {model: base}
