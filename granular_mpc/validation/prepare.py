@@ -63,6 +63,11 @@ from .scored_channels import (CHANNEL_UNITS, REPLAY_REQUIRED, SCORED_GROUPS,  # 
                               channel_names, channel_unit, check_replayable)
 
 
+#: a touchdown window's free surface is the mean of (the stance foot's height + measured
+#: intrusion) over this many first samples of the phase [samples]
+SURFACE_SAMPLES = 15
+
+
 @dataclass(frozen=True)
 class FootInit:
     """Initial contact state of one foot in the local frame.
@@ -478,7 +483,7 @@ def _window(index: int, st: TrialStates, arrays: dict, biped: Biped, data: pin.D
     pin.framesForwardKinematics(biped.model, data, q0)
     c_W = patch_points(biped, data.oMf[biped.foot_frame[side]]).mean(axis=0)
     if touchdown and st.has_intrusion:
-        m = min(15, b - a)
+        m = min(SURFACE_SAMPLES, b - a)
         heights = []
         for k in range(a, a + m):
             pin.framesForwardKinematics(biped.model, data, st.q_raw(k))
@@ -591,5 +596,6 @@ def windows_frame(windows: Sequence[StanceWindow], values: Sequence[dict] | None
 
 
 __all__ = ["StanceWindow", "FootInit", "TrialStates", "stance_windows", "windows_frame",
+           "SURFACE_SAMPLES",
            "channel_names", "channel_unit", "check_replayable", "patch_points", "foot_pitch",
            "AXES", "REPLAY_REQUIRED", "SCORED_GROUPS", "CHANNEL_UNITS"]

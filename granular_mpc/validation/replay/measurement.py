@@ -36,7 +36,7 @@ from ...columns import BASE_QUATERNION, joint_columns
 from ...effects import EffectInfo, SensorContext, check_sensor_effect, invert_sensor_effects
 from ...robot.model import SIDES, Biped
 from ...rotations import matrix_from_quat_xyzw, wxyz_from_xyzw, xyzw_from_wxyz
-from ..prepare import FootInit, StanceWindow, patch_points
+from ..prepare import SURFACE_SAMPLES, FootInit, StanceWindow, patch_points
 from .model import Variant
 
 
@@ -44,11 +44,42 @@ def _sample_period(w: StanceWindow) -> float:
     return float(w.time[1] - w.time[0]) if w.n > 1 else 0.0
 
 
-def _moved_foot(fi: FootInit, delta: np.ndarray) -> FootInit:
-    """``fi`` with its geometry moved by the per-patch displacement ``delta`` (n, 3) [m]."""
+def _moved_foot(fi: FootInit, delta: np.ndarray, surface_shift: float | None = None
+                ) -> FootInit:
+    """``fi`` with its geometry moved by the per-patch displacement ``delta`` (n, 3) [m];
+    its free surface by ``surface_shift`` [m] (None: with the foot)."""
     mean = delta.mean(axis=0)
-    return replace(fi, surface=float(fi.surface + mean[2]), point=fi.point + mean,
+    dz = mean[2] if surface_shift is None else surface_shift
+    return replace(fi, surface=float(fi.surface + dz), point=fi.point + mean,
                    c0=fi.c0 + delta)
+
+
+def _touchdown_surface_shift(biped: Biped, w: StanceWindow, specs, J: list[str]) -> float:
+    """How prepare's free surface of a touchdown window's stance foot moves when the poses
+    it was estimated from are replaced by their true values: the mean, over the phase's
+    first :data:`~..prepare.SURFACE_SAMPLES` rows (the window's first scored rows), of the
+    foot's patch height through the forward kinematics of the raw pose, true minus
+    measured [m]. (The start sample's displacement alone is off where the pose changes
+    over those rows: 41 µm for a 1.5° trunk tilt.)"""
+    m = min(SURFACE_SAMPLES, w.n)
+    q_cols = joint_columns(J, "q")
+    rows = {c: np.asarray(v, dtype=float)[:m] for c, v in window_columns(w).items()}
+    ctx = SensorContext(np.full(m, w.side, dtype=object), w.time[:m], tuple(J))
+    true = invert_sensor_effects(rows, specs, ctx, q_cols + list(BASE_QUATERNION), strict=False)
+    data = biped.create_data()
+    frame = biped.foot_frame[w.side]
+    heights = []
+    for cols in (rows, true):
+        z = 0.0
+        for k in range(m):
+            quat = np.array([cols[c][k] for c in BASE_QUATERNION])
+            quat = quat / np.linalg.norm(quat)
+            q = biped.q_from_parts(np.zeros(3), xyzw_from_wxyz(quat),
+                                   [cols[c][k] for c in q_cols])
+            pin.framesForwardKinematics(biped.model, data, q)
+            z += float(patch_points(biped, data.oMf[frame])[:, 2].mean())
+        heights.append(z / m)
+    return heights[1] - heights[0]
 
 
 def true_window(biped: Biped, w: StanceWindow, variant: Variant | None) -> StanceWindow:
@@ -95,7 +126,11 @@ def true_window(biped: Biped, w: StanceWindow, variant: Variant | None) -> Stanc
         for q in (w.q0, q0):
             pin.framesForwardKinematics(biped.model, data, q)
             pts.append([patch_points(biped, data.oMf[biped.foot_frame[s]]) for s in SIDES])
-        feet = [_moved_foot(fi, pts[1][i] - pts[0][i]) for i, fi in enumerate(w.feet)]
+        lead = SIDES.index(w.side)
+        shift = (_touchdown_surface_shift(biped, w, specs, J)
+                 if not w.feet[lead].in_contact and w.n > 0 else None)
+        feet = [_moved_foot(fi, pts[1][i] - pts[0][i], shift if i == lead else None)
+                for i, fi in enumerate(w.feet)]
     return replace(w, q0=q0, v0=v0, tau=tau, feet=tuple(feet))
 
 
