@@ -485,7 +485,7 @@ def diagnose(
     seed: Annotated[int, typer.Option("--seed", help="Bootstrap seed.")] = 0,
     terrain: TerrainOpt = "dry_sand",
     effect_file: EffectFileOpt = None,
-    measurement: Annotated[bool, typer.Option("--measurement", help="Also test the measurement model: per-joint torque gain/offset, encoder offsets, force-sensor gain, torque time offset, trunk attitude bias (granular_mpc.effects.measurement).")] = False,
+    measurement: Annotated[bool, typer.Option("--measurement", help="Also test the measurement model: per-joint torque gain/offset, encoder offsets and gains, force-sensor gain, torque time offset, trunk attitude bias (granular_mpc.effects.measurement).")] = False,
     workers: WorkersOpt = None,
     debug: DebugOpt = False,
 ) -> None:

@@ -53,6 +53,7 @@ def test_each_map_changes_only_its_columns(cols, ctx):
         "torque_gain": ({"gain_left_knee": 0.1}, {"tau_left_knee"}),
         "torque_offset": ({"offset_right_hip_pitch": 0.5}, {"tau_right_hip_pitch"}),
         "encoder_offset": ({"delta_left_knee": 0.03}, {"q_left_knee"}),
+        "encoder_gain": ({"scale_left_knee": 0.05}, {"q_left_knee", "dq_left_knee"}),
         "force_sensor_gain": ({"gain_z": 0.1}, {"grf_z"}),
         "torque_time_offset": ({"delay": 0.01}, {f"tau_{j}" for j in JOINTS}),
         "trunk_attitude_bias": ({"pitch": 0.02}, {"base_qw", "base_qy"}),
@@ -70,6 +71,9 @@ def test_laws(cols, ctx):
     assert np.allclose(out["tau_left_knee"], 1.1 * cols["tau_left_knee"])
     out, _ = _apply("encoder_offset", {"delta_left_knee": 0.03}, cols, ctx)
     assert np.allclose(out["q_left_knee"] - cols["q_left_knee"], 0.03)
+    out, _ = _apply("encoder_gain", {"scale_left_knee": 0.05}, cols, ctx)
+    assert np.allclose(out["q_left_knee"], 1.05 * cols["q_left_knee"])
+    assert np.allclose(out["dq_left_knee"], 1.05 * cols["dq_left_knee"])
     # a 2-sample lag: the measured torque at t is the true one at t − 10 ms
     out, _ = _apply("torque_time_offset", {"delay": 0.01}, cols, ctx)
     assert np.allclose(out["tau_left_knee"][2:], cols["tau_left_knee"][:-2])
@@ -80,7 +84,9 @@ def test_replay_inversion_recovers_the_truth(cols, ctx):
             ("torque_gain", {"gain_left_knee": 0.2, "gain_right_hip_abd": -0.1},
              ["tau_left_knee", "tau_right_hip_abd"]),
             ("torque_offset", {"offset_left_knee": 1.5}, ["tau_left_knee"]),
-            ("encoder_offset", {"delta_right_knee": -0.04}, ["q_right_knee"])):
+            ("encoder_offset", {"delta_right_knee": -0.04}, ["q_right_knee"]),
+            ("encoder_gain", {"scale_right_knee": 0.05, "scale_left_hip_pitch": -0.03},
+             ["q_right_knee", "dq_right_knee", "q_left_hip_pitch", "dq_left_hip_pitch"])):
         meas, specs = _apply(name, values, cols, ctx)
         true = invert_sensor_effects(meas, specs, ctx, targets)
         for c in targets:

@@ -12,6 +12,10 @@ identifies them jointly with the physics candidates. Each has its own signature:
 * ``encoder_offset`` — per joint, ``q_j`` reads q_j + δ_j [rad]: every replay starts from
   a wrong posture and its joint-angle outputs are shifted by δ_j (a replay inverts the
   map on its initial state, ``validation/replay/measurement.py``);
+* ``encoder_gain`` — per joint, ``q_j`` and ``dq_j`` read (1 + g_j)·q_j, (1 + g_j)·q̇_j (a
+  wrong gear ratio or encoder resolution): like an offset it changes every replay's
+  initial posture, but in proportion to the angle — an offset and a gain are told apart
+  by how the error varies with the angle over the gait;
 * ``force_sensor_gain`` — per world axis, ``grf_i`` reads (1 + g_i)·F_i (the bias is the
   library's ``force_sensor_bias``);
 * ``torque_time_offset`` — ``tau_*`` is stamped d [s] late relative to the kinematics:
@@ -28,8 +32,8 @@ identifies them jointly with the physics candidates. Each has its own signature:
 
 **Opt-in.** Importing this module registers the family (:func:`register_measurement`,
 idempotent); :mod:`granular_mpc.effects` does not import it, so the default candidates of
-``diagnose`` (every registered effect) stay the library's seven — the family has 24
-parameters, 21 of which change a replay's inputs and need replays of their own. Pass
+``diagnose`` (every registered effect) stay the library's seven — the family has 30
+parameters, 27 of which change a replay's inputs and need replays of their own. Pass
 ``candidates=[…library…, *MEASUREMENT]`` (or ``--effect-file`` this module's path).
 
 Parameters are named per joint of the biped (``yobogo10s``: :data:`JOINTS`); on a robot
@@ -52,8 +56,8 @@ from .state import SensorContext
 JOINTS = ("left_hip_abd", "left_hip_pitch", "left_knee", "right_hip_abd", "right_hip_pitch",
           "right_knee")
 #: the family's effect names
-MEASUREMENT = ("torque_gain", "torque_offset", "encoder_offset", "force_sensor_gain",
-               "torque_time_offset", "trunk_attitude_bias")
+MEASUREMENT = ("torque_gain", "torque_offset", "encoder_offset", "encoder_gain",
+               "force_sensor_gain", "torque_time_offset", "trunk_attitude_bias")
 TAG = "measurement"
 
 
@@ -82,6 +86,19 @@ def encoder_offset(cols, p, ctx: SensorContext):
     """Encoder zero offset per joint: q_j reads q_j + δ_j [rad]."""
     return {f"q_{j}": _col(cols, f"q_{j}") + p[f"delta_{j}"]
             for j in ctx.joint_names if f"delta_{j}" in p}
+
+
+def encoder_gain(cols, p, ctx: SensorContext):
+    """Encoder gain error per joint: q_j reads (1 + g_j)·q_j and dq_j (1 + g_j)·q̇_j."""
+    out = {}
+    for j in ctx.joint_names:
+        if f"scale_{j}" not in p:
+            continue
+        g = 1.0 + p[f"scale_{j}"]
+        out[f"q_{j}"] = g * _col(cols, f"q_{j}")
+        if f"dq_{j}" in cols:
+            out[f"dq_{j}"] = g * _col(cols, f"dq_{j}")
+    return out
 
 
 def force_sensor_gain(cols, p, ctx: SensorContext):
@@ -154,6 +171,9 @@ def register_measurement() -> tuple[str, ...]:
          ("constant torque error in stance and swing", "tau_*")),
         (encoder_offset, _per_joint("delta", 0.01, -0.2, 0.2, "rad", "encoder zero offset"),
          None, ("constant joint-angle shift; the replay's initial posture", "q_*")),
+        (encoder_gain, _per_joint("scale", 0.02, -0.3, 0.3, "-", "encoder gain error"),
+         None, ("angle-proportional joint-angle error; the replay's initial posture",
+                "q_*", "dq_*")),
         (force_sensor_gain, {f"gain_{a}": Param(0.05, -0.5, 0.5, "-",
                                                  f"force-sensor gain error on grf_{a}")
                              for a in "xyz"}, "gain_z",
@@ -183,4 +203,5 @@ register_measurement()
 __all__ = ["register_measurement", "MEASUREMENT", "JOINTS", "TAG", "torque_gain",
            "torque_offset", "encoder_offset", "force_sensor_gain", "torque_time_offset",
            "torque_time_offset_inverse", "SHIFT_REFINEMENTS", "trunk_attitude_bias",
+           "encoder_gain",
            "trunk_attitude_bias_inverse"]
