@@ -362,6 +362,9 @@ def test_a_candidate_whose_replays_diverged_is_not_ranked():
     drag.reshape(-1)[R.size - int(MAX_DIVERGED_SHARE * n) - 1] = np.nan  # one cell more
     bad = diverged_candidates(cs, sens, R)
     assert list(bad) == ["inertial_drag"] and "diverged in 11 %" in bad["inertial_drag"]
+    # the message names the parameter whose probe diverged, at its probe value
+    (c_d,) = cs.columns["inertial_drag"]
+    assert f"c_d alone at {c_d.neutral + c_d.step:.4g}" in bad["inertial_drag"]
 
 
 # ----------------------------------------------------------------------------- pipeline

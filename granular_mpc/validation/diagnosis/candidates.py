@@ -227,17 +227,28 @@ def diverged_candidates(candidates: CandidateSet, sens: Mapping[str, np.ndarray]
     out = {}
     for name, cols in candidates.columns.items():
         lost = np.zeros_like(defined)
+        worst, worst_k = None, 0
         for c in cols:
             S = sens.get(c.key)
             if S is not None:
-                lost |= defined & ~np.isfinite(S)
+                lost_c = defined & ~np.isfinite(S)
+                lost |= lost_c
+                if int(lost_c.sum()) > worst_k:
+                    worst, worst_k = c, int(lost_c.sum())
         k = int(lost.sum())
         if n and k > MAX_DIVERGED_SHARE * n:
+            probe = (f"; the worst, the replays with {worst.param} alone at "
+                     f"{worst.neutral + worst.step:.4g}"
+                     f"{' ' + worst.unit if worst.unit not in ('', '-') else ''}"
+                     f" (each magnitude parameter is probed alone at its default, the others "
+                     f"neutral), diverged in {100 * worst_k / n:.0f} %" if worst else "")
             out[name] = (f"candidate '{name}' ({candidates.kind(name)}): its replays diverged "
-                         f"in {100 * k / n:.0f} % of the residual's cells ({k} of {n}); the "
-                         "regression keeps only rows every candidate defines, so it would take "
-                         "them from all the others: not ranked (check its parameter range and "
-                         "probe step)")
+                         f"in {100 * k / n:.0f} % of the residual's cells ({k} of {n}){probe}. "
+                         "The regression keeps only rows every candidate defines, so it would "
+                         "take them from all the others: not ranked. A term that is stable only "
+                         "beside the others (a negative depth² beside a positive depth term), or "
+                         "a default far beyond the data, does this: give it a smaller default, "
+                         "bound it, or put the terms under one common scale parameter")
     return out
 
 
