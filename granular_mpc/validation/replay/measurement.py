@@ -54,16 +54,22 @@ def _moved_foot(fi: FootInit, delta: np.ndarray, surface_shift: float | None = N
                    c0=fi.c0 + delta)
 
 
-def _touchdown_surface_shift(biped: Biped, w: StanceWindow, specs, J: list[str]) -> float:
+def _touchdown_surface_shift(biped: Biped, w: StanceWindow, specs,
+                             J: list[str]) -> float | None:
     """How prepare's free surface of a touchdown window's stance foot moves when the poses
     it was estimated from are replaced by their true values: the mean, over the phase's
     first :data:`~..prepare.SURFACE_SAMPLES` rows (the window's first scored rows), of the
     foot's patch height through the forward kinematics of the raw pose, true minus
     measured [m]. (The start sample's displacement alone is off where the pose changes
-    over those rows: 41 µm for a 1.5° trunk tilt.)"""
+    over those rows: 41 µm for a 1.5° trunk tilt.) None where prepare estimated the surface
+    otherwise (no measured intrusion) or the rows lack a pose column: the foot's own
+    displacement then."""
     m = min(SURFACE_SAMPLES, w.n)
     q_cols = joint_columns(J, "q")
     rows = {c: np.asarray(v, dtype=float)[:m] for c, v in window_columns(w).items()}
+    if m == 0 or "intrusion_z" not in w.meas or any(
+            c not in rows for c in (*q_cols, *BASE_QUATERNION)):
+        return None
     ctx = SensorContext(np.full(m, w.side, dtype=object), w.time[:m], tuple(J))
     true = invert_sensor_effects(rows, specs, ctx, q_cols + list(BASE_QUATERNION), strict=False)
     data = biped.create_data()
@@ -127,8 +133,8 @@ def true_window(biped: Biped, w: StanceWindow, variant: Variant | None) -> Stanc
             pin.framesForwardKinematics(biped.model, data, q)
             pts.append([patch_points(biped, data.oMf[biped.foot_frame[s]]) for s in SIDES])
         lead = SIDES.index(w.side)
-        shift = (_touchdown_surface_shift(biped, w, specs, J)
-                 if not w.feet[lead].in_contact and w.n > 0 else None)
+        shift = (None if w.feet[lead].in_contact
+                 else _touchdown_surface_shift(biped, w, specs, J))
         feet = [_moved_foot(fi, pts[1][i] - pts[0][i], shift if i == lead else None)
                 for i, fi in enumerate(w.feet)]
     return replace(w, q0=q0, v0=v0, tau=tau, feet=tuple(feet))
