@@ -167,3 +167,34 @@ def test_cli_import_bad_mapping_exits_2_naming_the_key(tmp_path, biped):
     assert res.exit_code == 2
     assert "sample_rate_hz" in res.output
     assert not (tmp_path / "data").exists()
+
+
+def test_an_unknown_channel_target_is_refused_with_the_allowed_ones(tmp_path, biped):
+    """A misspelt `to:` used to be accepted and the channel silently dropped (so it read as
+    'not measured'); now the mapping is refused, naming the target and the allowed ones."""
+    folder, _ = lab_files(tmp_path / "lab", make_trial(), biped)
+    m = yaml.safe_load(lab_mapping(tmp_path).read_text())
+    m["streams"][1]["channels"][1]["to"] = "trunk_angular_rate"
+    (tmp_path / "map.yaml").write_text(yaml.safe_dump(m))
+    with pytest.raises(ConfigError, match="trunk_angular_rate.*trunk_angular_velocity"):
+        import_log(folder, tmp_path / "map.yaml", tmp_path / "ds")
+    m["streams"][1]["channels"][1] = {"to": "base_wx", "field": "gx"}     # one column: fine
+    (tmp_path / "map.yaml").write_text(yaml.safe_dump(m))
+    with pytest.raises(ConfigError, match="trunk_angular_velocity is incomplete"):
+        import_log(folder, tmp_path / "map.yaml", tmp_path / "ds2")
+
+
+@pytest.mark.parametrize("fault", ["nan", "backwards"])
+def test_a_bad_time_cell_is_named_by_its_sample(tmp_path, biped, fault):
+    """A NaN in a file's time column was always reported as 'sample 1'."""
+    folder, _ = lab_files(tmp_path / "lab", make_trial(), biped)
+    imu = pd.read_csv(folder / "imu.csv")
+    if fault == "nan":
+        imu.loc[100, "t_ms"] = np.nan
+        expect = r"not finite at sample 101 \(nan\)"
+    else:
+        imu.loc[[121, 122], "t_ms"] = imu.loc[[122, 121], "t_ms"].to_numpy()
+        expect = "not strictly increasing at sample 123"
+    imu.to_csv(folder / "imu.csv", index=False)
+    with pytest.raises(ConfigError, match=expect):
+        import_log(folder, lab_mapping(tmp_path), tmp_path / "ds")

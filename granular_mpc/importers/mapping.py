@@ -28,6 +28,9 @@ VECTOR_TARGETS: dict[str, tuple[str, ...]] = {
     "right_foot_force": tuple(foot_column("right", c) for c in GRF_COLUMNS),
 }
 FOOT_FORCE_TARGETS = ("left_foot_force", "right_foot_force")
+#: single data set columns a channel entry may fill (the components of the vector targets)
+COLUMN_TARGETS: tuple[str, ...] = tuple(dict.fromkeys(
+    c for cols in VECTOR_TARGETS.values() for c in cols))
 
 
 class ChannelMap(StrictModel):
@@ -55,6 +58,10 @@ class ChannelMap(StrictModel):
 
     @model_validator(mode="after")
     def _one_source(self) -> "ChannelMap":
+        if self.to not in VECTOR_TARGETS and self.to not in COLUMN_TARGETS:
+            raise ValueError(f"unknown target to: {self.to!r}; allowed: "
+                             f"{', '.join(VECTOR_TARGETS)}, or one data set column: "
+                             f"{', '.join(COLUMN_TARGETS)}")
         if (self.field is None) == (self.fields is None):
             raise ValueError("give either field or fields")
         if self.fields is not None and self.to in VECTOR_TARGETS \

@@ -68,9 +68,15 @@ def _check_time(time: np.ndarray, source: str, key: str, mapping_file: str) -> N
     if time.size < 2:
         raise _error(f"has {time.size} sample(s); a stream needs at least 2", key, source,
                      mapping_file)
-    if not np.all(np.isfinite(time)) or not np.all(np.diff(time) > 0):
-        bad = int(np.flatnonzero(~(np.diff(time) > 0))[0]) + 1 if np.all(np.isfinite(time)) else 0
-        raise _error(f"time is not finite and strictly increasing (sample {bad + 1})",
+    finite = np.isfinite(time)
+    if not finite.all():
+        bad = int(np.flatnonzero(~finite)[0])
+        raise _error(f"time is not finite at sample {bad + 1} ({float(time[bad]):g})",
+                     f"{key}.time", source, mapping_file)
+    if not np.all(np.diff(time) > 0):
+        bad = int(np.flatnonzero(~(np.diff(time) > 0))[0]) + 1
+        raise _error(f"time is not strictly increasing at sample {bad + 1} "
+                     f"({float(time[bad]):.9g} s after {float(time[bad - 1]):.9g} s)",
                      f"{key}.time", source, mapping_file)
 
 
