@@ -198,3 +198,16 @@ def test_a_bad_time_cell_is_named_by_its_sample(tmp_path, biped, fault):
     imu.to_csv(folder / "imu.csv", index=False)
     with pytest.raises(ConfigError, match=expect):
         import_log(folder, lab_mapping(tmp_path), tmp_path / "ds")
+
+
+def test_a_non_numeric_cell_is_named_by_its_row_and_value(tmp_path, biped):
+    """'not numeric' used to name only the column: now the first bad row and its text."""
+    folder, _ = lab_files(tmp_path / "lab", make_trial(), biped)
+    joints = pd.read_csv(folder / "joints.csv")
+    col = next(c for c in joints.columns if c.endswith("_Nm"))
+    joints[col] = joints[col].astype(object)
+    joints.loc[41, col] = "1.2 Nm"
+    joints.to_csv(folder / "joints.csv", index=False)
+    with pytest.raises(ConfigError, match=rf"'{col}' is not numeric: 1 cell\(s\), the first in "
+                                          r"data row 42 \('1.2 Nm'\)"):
+        import_log(folder, lab_mapping(tmp_path), tmp_path / "ds")

@@ -101,7 +101,11 @@ def read_table_stream(path: Path, stream: StreamMap, key: str, mapping: ImportMa
         try:
             return df[name].to_numpy(dtype=float)
         except (TypeError, ValueError):
-            raise _error(f"column {name!r} is not numeric", what, stream.source,
+            bad = pd.to_numeric(df[name], errors="coerce").isna() & df[name].notna()
+            rows = np.flatnonzero(bad.to_numpy())
+            where = (f": {len(rows)} cell(s), the first in data row {rows[0] + 1} "
+                     f"({df[name].iloc[rows[0]]!r})" if rows.size else "")
+            raise _error(f"column {name!r} is not numeric{where}", what, stream.source,
                          mapping_file) from None
 
     time = column(stream.time, f"{key}.time") * stream.time_scale + stream.time_offset_s
