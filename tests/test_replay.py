@@ -369,6 +369,20 @@ def test_reused_plant_data_replays_like_a_fresh_one(clean_windows):
             assert np.array_equal(np.asarray(again[c]), np.asarray(val)), (w.index, c)
 
 
+def _windows_measured(ds, rm, sensor):
+    """Stance windows of ``ds`` with every trial passed through ``sensor(df)`` (which
+    changes a copy of the trial's table in place: the "measured" data)."""
+    import dataclasses
+
+    trials = {}
+    for name, df in ds.trials.items():
+        df = df.copy()
+        sensor(df)
+        trials[name] = df
+    return stance_windows(dataclasses.replace(ds, trials=trials), rm.biped,
+                          contact_stiffness=rm.contact_stiffness)
+
+
 def _user_delay(cols, p, ctx):
     """Torque stream stamped d late, written without an inverse: τ_meas(t) = τ(t − d)."""
     t = np.asarray(ctx.time, dtype=float)
@@ -380,8 +394,6 @@ def test_a_torque_delay_at_its_true_value_restores_the_replay(clean_windows):
     """Data whose torque stream is 2 samples late: the measurement family's
     ``torque_time_offset`` (which carries its inverse) at the true delay brings the replay
     back to the plant's; the same map without an inverse cannot be replayed and says so."""
-    import dataclasses
-
     from granular_mpc.effects import Param, effect_info
     from granular_mpc.effects.measurement import register_measurement
     from granular_mpc.validation.diagnosis.candidates import (
@@ -392,16 +404,13 @@ def test_a_torque_delay_at_its_true_value_restores_the_replay(clean_windows):
     info = effect_info("torque_time_offset")
     ds, rm, ws = clean_windows
     delay = 0.004                                   # 2 samples at 500 Hz
-    trials = {}
-    for name, df in ds.trials.items():
-        df = df.copy()
+    def late(df):
         t = df["time"].to_numpy()
         for c in df.columns:
             if c.startswith("tau_"):
                 df[c] = np.interp(t - delay, t, df[c].to_numpy())
-        trials[name] = df
-    late = dataclasses.replace(ds, trials=trials)
-    wl = stance_windows(late, rm.biped, contact_stiffness=rm.contact_stiffness)
+
+    wl = _windows_measured(ds, rm, late)
     k = 3
     ref = replay_granular(rm, ws[k], Variant())
     off = replay_granular(rm, wl[k], Variant())
@@ -428,8 +437,6 @@ def test_a_trunk_attitude_bias_at_its_true_value_restores_the_replay(clean_windo
     tilted and the stance foot's free surface estimated through tilted kinematics; the
     measurement family's ``trunk_attitude_bias`` at the true pitch undoes both, and the
     replay is the unbiased data's."""
-    import dataclasses
-
     from granular_mpc.effects import effect_info
     from granular_mpc.effects.measurement import register_measurement
     from granular_mpc.rotations import quat_mul_rows_wxyz, quat_rows_wxyz_from_rotvec
@@ -439,15 +446,13 @@ def test_a_trunk_attitude_bias_at_its_true_value_restores_the_replay(clean_windo
     ds, rm, ws = clean_windows
     pitch = np.deg2rad(1.5)
     cols = ["base_qw", "base_qx", "base_qy", "base_qz"]
-    trials = {}
-    for name, df in ds.trials.items():
-        df = df.copy()
+
+    def tilted(df):
         q = df[cols].to_numpy()
         qb = np.repeat(quat_rows_wxyz_from_rotvec([[0.0, pitch, 0.0]]), len(q), axis=0)
         df[cols] = quat_mul_rows_wxyz(q, qb)
-        trials[name] = df
-    tilted = dataclasses.replace(ds, trials=trials)
-    wt = stance_windows(tilted, rm.biped, contact_stiffness=rm.contact_stiffness)
+
+    wt = _windows_measured(ds, rm, tilted)
     k = 3
     ref = replay_granular(rm, ws[k], Variant())
     off = replay_granular(rm, wt[k], Variant())
