@@ -114,6 +114,10 @@ def torque_time_offset(cols, p, ctx: SensorContext):
             for j in ctx.joint_names if f"tau_{j}" in cols}
 
 
+#: refinement steps of a fractional shift's inverse (:func:`torque_time_offset_inverse`)
+SHIFT_REFINEMENTS = 3
+
+
 def torque_time_offset_inverse(cols, p, ctx: SensorContext):
     """The true torques under :func:`torque_time_offset`: τ(t) ≈ τ_meas(t + d), exact for a
     whole number of samples (away from the ends, where the stream is held); a fractional
@@ -133,9 +137,6 @@ def torque_time_offset_inverse(cols, p, ctx: SensorContext):
         out[c] = x
     return out
 
-
-#: refinement steps of a fractional shift's inverse (:func:`torque_time_offset_inverse`)
-SHIFT_REFINEMENTS = 3
 
 
 def _attitude(cols, p, inverse: bool) -> dict[str, np.ndarray]:
@@ -203,5 +204,4 @@ register_measurement()
 __all__ = ["register_measurement", "MEASUREMENT", "JOINTS", "TAG", "torque_gain",
            "torque_offset", "encoder_offset", "force_sensor_gain", "torque_time_offset",
            "torque_time_offset_inverse", "SHIFT_REFINEMENTS", "trunk_attitude_bias",
-           "encoder_gain",
-           "trunk_attitude_bias_inverse"]
+           "trunk_attitude_bias_inverse", "encoder_gain"]
