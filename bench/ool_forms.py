@@ -67,6 +67,12 @@ def sole_coulomb(o, s, f0, v0=0.02):
     return (f * s.heading[0], f * s.heading[1], 0.0)
 
 
+def worn_right_sole(o, s, w):
+    """A worn right sole: it bears (1 − w) of the terrain law's force (the left sole all)."""
+    k = -w * s.is_right * s.in_contact
+    return (k * s.f_terrain[0], k * s.f_terrain[1], k * s.f_terrain[2])
+
+
 # --- joint torques fn(q_a, dq_a, k) -> tau_a [N·m], actuator order ----------------------
 
 def stiction(q_a, dq_a, tau_s):
@@ -162,6 +168,8 @@ FORMS: tuple[Form, ...] = (
          (0.0, 1.0e6), ("intrusion_y", "grf_y")),
     Form("sole_coulomb", "terrain_force", sole_coulomb, "f0", "N", (5.0, 12.0), (0.0, 100.0),
          ("intrusion_x", "grf_x"), "h:sign_v_h", -1.0),
+    Form("worn_sole", "terrain_force", worn_right_sole, "w", "-", (0.15, 0.3), (0.0, 0.9),
+         ("intrusion_z", "q_right_knee"), "z:right_law_z", -1.0),
     Form("stiction", "joint", stiction, "tau_s", "N·m", (0.2, 0.5), (0.0, 5.0), ("q_",)),
     Form("knee_spring", "joint", knee_spring, "k", "N·m/rad", (1.0, 3.0), (-20.0, 20.0),
          ("q_left_knee", "q_right_knee")),
@@ -173,8 +181,8 @@ FORMS: tuple[Form, ...] = (
          ("grf_z",)),
 )
 FORM_BY_NAME = {f.name: f for f in FORMS}
-QUICK_FORMS = ("vdamp", "v2drag", "hard_layer", "sole_coulomb", "stiction", "torque_gain",
-               "encoder_offset", "grf_bias_left")
+QUICK_FORMS = ("vdamp", "v2drag", "hard_layer", "sole_coulomb", "worn_sole", "stiction",
+               "torque_gain", "encoder_offset", "grf_bias_left")
 #: null sets: the plant's terrain unlike the model file (φ_s 38°, layer 0.12 m, k 2e5 N/m)
 MISMATCHES = ("terrain.phi_s_deg=33", "terrain.layer_depth=0.04",
               "terrain.contact_stiffness=1e5")

@@ -8,7 +8,7 @@
 
 Every hidden effect here is written with the public plugin API (``register_effect``,
 ``register_joint_effect``, ``register_sensor_effect``) exactly as a user's effect file
-would be, and none of them is in the effects library (:data:`FORMS`: five terrain forces,
+would be, and none of them is in the effects library (:data:`FORMS`: six terrain forces,
 two joint torques, three sensor maps). Per case one plant run (``synth``, no noise: 3
 trials at 0.15 / 0.25 / 0.35 m/s × ``--steps`` stances, the test suite's design) is
 turned into a data set with sensor noise level 1 (``noisy_copy``) and diagnosed twice:
@@ -24,7 +24,7 @@ turned into a data set with sensor noise level 1 (``noisy_copy``) and diagnosed 
 Cases: each form at two magnitudes × ``--seeds``; pairs (a library effect + a form at its
 first magnitude, first seed); null sets without any effect but with a plant whose φ_s,
 layer depth or contact stiffness is unlike the model file's (:data:`MISMATCHES`).
-``--quick``: :data:`QUICK_FORMS` (8 forms) × the first magnitude × seed 1 + the first two
+``--quick``: :data:`QUICK_FORMS` (9 forms) × the first magnitude × seed 1 + the first two
 mismatches, no pairs.
 
 Each case runs in its own process (``--workers`` at a time; the registries of two cases

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -69,7 +71,10 @@ def test_duplicated_feature_is_not_usable():
 def test_every_feature_has_a_unit_and_a_unique_name():
     assert len(set(feature_names())) == len(FEATURES)
     assert all(f.unit for f in FEATURES)
-    assert feature("v_z").expressible and not feature("right_foot").expressible
+    assert feature("v_z").expressible and feature("right_foot").expressible
+    # the per-foot law features are shares of the law's own force: the same per patch
+    assert feature("right_law_z").relative and feature("right_law_h").relative
+    assert not feature("depth").relative
 
 
 def _proposal(c_foot=-20.0):
@@ -240,9 +245,12 @@ def test_proposal_finds_a_hidden_vertical_damping(tmp_path, monkeypatch):
     assert len(found) >= 2, found
 
 
-def _samples(law=None, coef=0.0, pattern=0.0, seed=0, n_stances=24, per=18):
+def _samples(law=None, coef=0.0, pattern=0.0, seed=0, n_stances=24, per=18,
+             law_nuisance=False):
     """Synthetic sinking samples of 3 trials: features from random sole states, a target
-    of ``coef``·(law feature) + a null-like pattern (depth, time in stance) + 2 N noise."""
+    of ``coef``·(law feature) + a null-like pattern (depth, time in stance) + 2 N noise.
+    ζ's column is ∝ depth on both axes, or with ``law_nuisance`` the law's own force / ζ
+    (a law ∝ ζ, as the closed form)."""
     from granular_mpc.validation.diagnosis.features import ForceSamples
 
     rng = np.random.default_rng(seed)
@@ -253,15 +261,18 @@ def _samples(law=None, coef=0.0, pattern=0.0, seed=0, n_stances=24, per=18):
          "v_h": np.repeat(rng.uniform(-0.25, 0.25, n_stances), per) + 0.03 * rng.normal(size=n),
          "v_l": 0.02 * rng.normal(size=n), "a_z": rng.normal(size=n), "t_stance": t,
          "foot": np.repeat(np.arange(n_stances) % 2, per)}
+    # the calibrated law's own force at the sample (∝ depth, forward part opposing v_h)
+    c["law_z"] = 5000.0 * c["depth"]
+    c["law_h"] = -0.4 * c["law_z"] * np.tanh(c["v_h"] / 0.05)
     F = np.column_stack([f.compute(c) for f in FEATURES])
     y = 2.0 * rng.normal(size=n) + pattern * (c["depth"] / 0.015 - 1.0 - t / 0.075)
     if law:
         y = y + coef * F[:, feature_names().index(law)]
     window = np.repeat(np.arange(n_stances), per)
     trial = (window % 3).astype(str)
-    nuis = 50.0 * c["depth"]
-    return ForceSamples({"z": y, "h": y}, {"z": nuis, "h": nuis}, F, trial, window,
-                        c["foot"], 2)
+    nuis = ({"z": c["law_z"] / 1.36, "h": c["law_h"] / 1.36} if law_nuisance
+            else {"z": 50.0 * c["depth"], "h": 50.0 * c["depth"]})
+    return ForceSamples({"z": y, "h": y}, nuis, F, trial, window, c["foot"], 2)
 
 
 @pytest.mark.parametrize("law,axis,coef", [("v_h_abs_v_h", "h", -300.0),
@@ -301,3 +312,92 @@ def test_law_fit_drops_a_law_of_the_wrong_physical_sign():
     fit = law_fit(_samples("v_h_abs_v_h", +300.0, seed=5), "h", seed=0)
     assert fit is None or not (fit.coef > 0).any()
     assert fit is None or not fit.selected[feature_names().index("v_h_abs_v_h")]
+
+
+@pytest.mark.parametrize("axis,coef", [("z", -0.25), ("z", 0.4), ("h", -0.5)])
+def test_per_foot_law_recovers_one_foots_share_of_the_law(axis, coef):
+    """A right foot bearing (1 + g) of the law's force (a worn sole g < 0, a right track
+    of stronger sand g > 0) under a null-like pattern and noise: the per-foot law stage
+    (ζ free for the common scale) selects it with g within 15 % and the axis passes.
+    (The stage has no term for a pattern common to both feet: at 3 N the forward share
+    comes out 17 % high — a hypothesis the replays refit, as the worn sole below.)"""
+    from granular_mpc.validation.diagnosis.proposal import (MIN_LAW_FORCE, PER_FOOT_FEATURES,
+                                                            law_fit)
+
+    law = PER_FOOT_FEATURES[axis][0]
+    fs = _samples(law, coef, pattern=1.0, seed=6, law_nuisance=True)
+    fit = law_fit(fs, axis, seed=0, laws=PER_FOOT_FEATURES, dissipative=False)
+    k = feature_names().index(law)
+    assert fit is not None and fit.selected[k]
+    assert fit.coef[k] == pytest.approx(coef, rel=0.15)
+    assert axis_passes(fit.heldout_reduction, fit.heldout_reduction_selected,
+                       fit.rmse_before, fit.rmse_after, axis, MIN_LAW_FORCE)
+
+
+@pytest.mark.parametrize("axis", ["z", "h"])
+def test_per_foot_law_proposes_nothing_when_the_feet_agree(axis):
+    """The same law on both feet (a common scale, which ζ carries) plus the null-like
+    pattern: the per-foot stage does not pass."""
+    from granular_mpc.validation.diagnosis.proposal import (MIN_LAW_FORCE, PER_FOOT_FEATURES,
+                                                            law_fit)
+
+    for seed in (3, 4):
+        fs = _samples(pattern=3.0, seed=seed, law_nuisance=True)
+        both = {a: fs.target[a] + 0.3 * 1.36 * fs.nuisance[a] for a in ("z", "h")}
+        fs = type(fs)(both, fs.nuisance, fs.features, fs.trial, fs.window, fs.foot, 2)
+        fit = law_fit(fs, axis, seed=0, laws=PER_FOOT_FEATURES, dissipative=False)
+        assert fit is None or not axis_passes(
+            fit.heldout_reduction, fit.heldout_reduction_selected, fit.rmse_before,
+            fit.rmse_after, axis, MIN_LAW_FORCE)
+
+
+def test_effect_file_of_a_per_foot_share_acts_on_its_foot_only(tmp_path):
+    """A proposed right-foot share of the law: per patch the same coefficient as per foot,
+    bounded below by −1 (a sole cannot lose more than all of the force), zero on the left
+    foot, g·f_terrain on the right."""
+    t = ProposedTerm("z", "right_law_z", feature("right_law_z").description, -0.3, -0.3,
+                     0.01, "-", 1.0, True)
+    prop = Proposal("test_per_foot_force", "", (t,),
+                    (AxisFit("z", 0.7, 0.7, 11.0, 5.0, 0.3, True, "per_foot"),), 300, 24)
+    path = tmp_path / "per_foot.py"
+    path.write_text(effect_source(prop, "data"), encoding="utf-8")
+    assert load_effect_file(str(path)) == ["test_per_foot_force"]
+    info = effect_info("test_per_foot_force")
+    par = info.params["z_right_law_z"]
+    assert par.default == pytest.approx(-0.3) and par.lower == -1.0
+    assert par.physical_range == (-1.0, 0.0)
+    p = {"z_right_law_z": -0.3}
+    right, left = replace(_patch(-0.5), foot=1.0), replace(_patch(-0.5), foot=0.0)
+    assert info.fn(FLOAT, right, p)[2] == pytest.approx(-0.3 * 50.0)
+    assert info.fn(FLOAT, left, p)[2] == pytest.approx(0.0)
+
+
+def test_proposal_finds_a_worn_right_sole(tmp_path):
+    """Out-of-library: the right sole bears 75 % of the terrain law's force (written with
+    the plugin API, not in the library). The proposal is the per-foot share of the law on
+    the vertical axis, negative, near −0.25 (measured on this realisation: −0.32; the
+    equation error at the calibrated ζ, before any replay refit)."""
+    from granular_mpc.effects import Param, register_effect, registered_effects
+    from granular_mpc.validation.calibrate import calibrate
+    from granular_mpc.validation.diagnosis.problem import load_problem
+    from granular_mpc.validation.synth import noisy_copy, synthesize
+
+    if "_test_worn_sole" not in registered_effects():
+        @register_effect("_test_worn_sole", params={"w": Param(0.25, 0.0, 0.9, "-", "")})
+        def _worn(o, s, p):
+            k = -p["w"] * s.is_right * s.in_contact
+            return (k * s.f_terrain[0], k * s.f_terrain[1], k * s.f_terrain[2])
+
+    clean = tmp_path / "clean"
+    synthesize("sand_walk", clean, speeds=(0.15, 0.25, 0.35), steps=7, seed=1,
+               effects=["_test_worn_sole:w=0.25"], noise=0.0, format="parquet")
+    noisy = noisy_copy(clean, tmp_path / "noisy", 1.0, seed=1)
+    pr = load_problem(noisy)
+    cal = calibrate(pr.windows, pr.replay_model.terrain, n_slices=2, params=("zeta",),
+                    n_boot=0)
+    prop = propose_terms(pr, cal.values, seed=1)
+    z = next(a for a in prop.axes if a.axis == "z")
+    assert z.proposed and z.stage == "per_foot"
+    terms = {t.feature: t for t in prop.terms if t.axis == "z"}
+    assert set(terms) == {"right_law_z"}
+    assert -0.45 < terms["right_law_z"].coefficient_patch < -0.15

@@ -29,13 +29,14 @@ def ool():
     return mod
 
 
-def _patch() -> PatchState:
-    """A sinking sole moving forward, 25 mm deep, 1 mm left of its touchdown track."""
+def _patch(foot: float = 1.0) -> PatchState:
+    """A sinking sole moving forward, 25 mm deep, 1 mm left of its touchdown track (of
+    the right foot unless ``foot`` = 0)."""
     return PatchState(depth=0.025, in_contact=1.0, p_c=(0.1, 0.0, -0.025),
                       v_c=(0.2, 0.05, -0.3), a_c=(0.0, 0.0, 0.0), intrusion=(0.004, 0.001, 0.025),
                       heading=(1.0, 0.0, 0.0), lateral=(0.0, 1.0, 0.0),
                       f_terrain=(3.0, 0.0, 60.0), f_yield_z=60.0, area_h=2e-3, width=0.03,
-                      density=1660.0, dt=5e-4, depth_max=0.025, t_stance=0.05)
+                      density=1660.0, dt=5e-4, depth_max=0.025, t_stance=0.05, foot=foot)
 
 
 AXIS = {"x": 0, "y": 1, "z": 2}
@@ -52,7 +53,7 @@ def test_at_least_eight_distinct_forms_of_every_kind(ool):
         assert lo <= 0.5 * f.magnitudes[0] <= hi and lo <= f.magnitudes[1] <= hi
         # none of them is in the library
         assert f.hidden not in ool.LIBRARY and f.user not in ool.LIBRARY
-    assert set(ool.QUICK_FORMS) <= {f.name for f in ool.FORMS} and len(ool.QUICK_FORMS) == 8
+    assert set(ool.QUICK_FORMS) <= {f.name for f in ool.FORMS} and len(ool.QUICK_FORMS) == 9
 
 
 def test_terrain_forms_push_along_their_channel_and_compile(ool):
@@ -69,6 +70,11 @@ def test_terrain_forms_push_along_their_channel_and_compile(ool):
         sym = fn(casadi_ops(), s, {f.param: ca.SX(f.magnitudes[1])})
         got = [float(ca.evalf(ca.SX(v))) for v in sym]
         assert got == pytest.approx(list(on), rel=1e-9, abs=1e-12), f.name
+    # the worn sole acts on the right foot only, as the share w of the law's own force
+    f = ool.FORM_BY_NAME["worn_sole"]
+    fn = effect_info(f.hidden).fn
+    assert fn(FLOAT, _patch(0.0), {f.param: 0.3}) == (0.0, 0.0, 0.0)
+    assert fn(FLOAT, _patch(1.0), {f.param: 0.3}) == pytest.approx((-0.9, 0.0, -18.0))
 
 
 def test_joint_forms_add_torque_where_they_should(ool):
@@ -112,7 +118,7 @@ def test_sensor_forms_change_only_their_columns(ool):
 
 def test_cases_quick_and_full(ool):
     quick = ool.build_cases(ool.QUICK_FORMS, [1], 1, False, ool.MISMATCHES[:2])
-    assert len(quick) == 10 and [c.group for c in quick].count("null") == 2
+    assert len(quick) == 11 and [c.group for c in quick].count("null") == 2
     full = ool.build_cases([f.name for f in ool.FORMS], [1, 2, 3], 2, True, ool.MISMATCHES)
     assert len(full) == len(ool.FORMS) * 2 * 3 + len(ool.PAIRS) + len(ool.MISMATCHES)
     assert len({c.tag for c in full}) == len(full)

@@ -44,6 +44,9 @@ class Feature:
         patch_expression: the same quantity written on a :class:`PatchState` ``s`` with the
             math namespace ``o`` (empty: not expressible in the plugin state).
         compute: (sample columns) → feature values.
+        relative: a share of the terrain law's own force (a foot-level coefficient is
+            then the same per patch), not a force per unit of a state (divided among the
+            foot's patches).
     """
 
     name: str
@@ -51,6 +54,7 @@ class Feature:
     unit: str
     patch_expression: str
     compute: Callable[[Mapping[str, np.ndarray]], np.ndarray]
+    relative: bool = False
 
     @property
     def expressible(self) -> bool:
@@ -60,9 +64,13 @@ class Feature:
 
 _V_H = "(s.v_c[0] * s.heading[0] + s.v_c[1] * s.heading[1])"
 _V_L = "(s.v_c[0] * s.lateral[0] + s.v_c[1] * s.lateral[1])"
+_F_H = "(s.f_terrain[0] * s.heading[0] + s.f_terrain[1] * s.heading[1])"
 
 #: the feature library (foot level; all zero out of contact). On sinking samples v_z < 0,
 #: so |v_z| and sign(v_z) would duplicate v_z and the constant: they are not in it.
+#: Foot identity enters as a constant on the right foot and as the right foot's share of
+#: the law's own force (a right track of other sand, or a worn right sole): with ζ free
+#: (the law's common scale), a left-foot version of either would duplicate it.
 FEATURES: tuple[Feature, ...] = (
     Feature("contact", "constant force while in contact", "1", "s.in_contact",
             lambda c: np.ones_like(c["depth"])),
@@ -87,8 +95,14 @@ FEATURES: tuple[Feature, ...] = (
             lambda c: c["v_l"]),
     Feature("a_z", "vertical sole acceleration", "m/s²", "s.a_c[2]", lambda c: c["a_z"]),
     Feature("t_stance", "time since touchdown", "s", "s.t_stance", lambda c: c["t_stance"]),
-    Feature("right_foot", "1 on the right foot (per-foot difference)", "1", "",
+    Feature("right_foot", "1 on the right foot (per-foot difference)", "1", "s.is_right",
             lambda c: c["foot"].astype(float)),
+    Feature("right_law_z", "the terrain law's vertical force on the right foot only "
+            "(per-foot sand or sole)", "N", "s.is_right * s.f_terrain[2]",
+            lambda c: c["foot"] * c["law_z"], relative=True),
+    Feature("right_law_h", "the terrain law's forward force on the right foot only "
+            "(per-foot sand or sole)", "N", f"s.is_right * {_F_H}",
+            lambda c: c["foot"] * c["law_h"], relative=True),
 )
 
 
@@ -171,11 +185,11 @@ def force_samples(windows: Sequence[StanceWindow], terrain, theta: Mapping[str, 
 
     c = sample_columns(windows)
     N = int(c["depth"].size)
-    F = np.column_stack([f.compute(c) for f in FEATURES]) if N else np.zeros((0, len(FEATURES)))
     if N == 0:
         z = np.zeros(0)
-        return ForceSamples({a: z for a in AXES}, {a: z for a in AXES}, F, c["trial"],
-                            c["window"], c["foot"], n_slices)
+        return ForceSamples({a: z for a in AXES}, {a: z for a in AXES},
+                            np.zeros((0, len(FEATURES))), c["trial"], c["window"], c["foot"],
+                            n_slices)
     cfg = terrain.config
     th = terrain.casadi_theta.copy()
     th[0] = float(theta.get("zeta", th[0]))
@@ -193,6 +207,7 @@ def force_samples(windows: Sequence[StanceWindow], terrain, theta: Mapping[str, 
     ev = ca.Function("ff", [Xs, ths], [fh, fz, ca.jacobian(fh, ths)[:, 0],
                                        ca.jacobian(fz, ths)[:, 0]])
     mh, mz, jh, jz = (np.asarray(v).ravel() for v in ev(X, th))
+    F = np.column_stack([f.compute({**c, "law_z": mz, "law_h": mh}) for f in FEATURES])
     return ForceSamples({"z": c["f_z"] - mz, "h": c["f_h"] - mh}, {"z": jz, "h": jh}, F,
                         c["trial"].astype(str), c["window"].astype(int), c["foot"].astype(int),
                         n_slices)

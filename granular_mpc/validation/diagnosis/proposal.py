@@ -55,6 +55,11 @@ MIN_EXPLAINED_FORCE = {"z": 5.0, "h": 9.5}
 #: time in stance: collinear with the sinking rate), and those were what the feedback run
 #: then refitted (docs/validation.md §3.6)
 LAW_FEATURES = {"z": ("v_z", "v_z_abs_v_z"), "h": ("v_h", "sign_v_h", "v_h_abs_v_h")}
+#: the per-foot law tried beside them, alone (ζ the only other column): the right foot's
+#: share of the terrain law's own force on the axis — a right track of other sand or a
+#: worn right sole (either sign; ζ carries the left foot). Of the two stages that pass,
+#: the one with the larger held-out reduction is proposed
+PER_FOOT_FEATURES = {"z": ("right_law_z",), "h": ("right_law_h",)}
 #: ... proposed when they pass :func:`axis_passes` with these least explained forces [N].
 #: Set on null data (sand_walk, 3 trials × 7 stances, noise 1, the model's plant at seeds
 #: 201, 202 and φ_s 33°, layer 4 cm, contact stiffness 1e5 at seed 201): the laws explain
@@ -113,28 +118,51 @@ def axis_passes(heldout_reduction: float, heldout_reduction_selected: float,
                 and explained_rms(rms_before, rms_after) >= min_force[axis])
 
 
-def law_fit(fs: ForceSamples, axis: str, *, seed: int = 0) -> SparseFit | None:
-    """The sparse fit of one axis on its physical laws alone (:data:`LAW_FEATURES`, ζ
-    unpenalised), coefficients of the wrong physical sign (> 0) dropped and the rest
-    refitted; arrays over all of :data:`FEATURES` (0 / unselected outside the laws).
+def law_fit(fs: ForceSamples, axis: str, *, seed: int = 0,
+            laws: Mapping[str, tuple[str, ...]] = LAW_FEATURES,
+            dissipative: bool = True) -> SparseFit | None:
+    """The sparse fit of one axis on its physical laws alone (``laws[axis]``, ζ
+    unpenalised); when ``dissipative``, coefficients of the wrong physical sign (> 0) are
+    dropped and the rest refitted; arrays over all of :data:`FEATURES` (0 / unselected
+    outside the laws).
 
     Args:
         fs: the equation-error samples.
         axis: ``z`` or ``h``.
         seed: seed of the stability resamples.
+        laws: axis → feature names (:data:`LAW_FEATURES`, :data:`PER_FOOT_FEATURES`).
+        dissipative: whether a coefficient must oppose the motion (≤ 0).
 
     Returns:
         The fit, or None when no law is left.
     """
-    idx = [feature_names().index(n) for n in LAW_FEATURES[axis]]
+    idx = [feature_names().index(n) for n in laws[axis]]
     while idx:
         fit = sparse_fit(fs.features[:, idx], fs.nuisance[axis][:, None], fs.target[axis],
                          fs.trial, fs.window, seed=seed)
-        wrong = {i for j, i in enumerate(idx) if fit.selected[j] and fit.coef[j] > 0}
+        wrong = {i for j, i in enumerate(idx)
+                 if dissipative and fit.selected[j] and fit.coef[j] > 0}
         if not wrong:
             return _on_all_features(fit, np.array(idx))
         idx = [i for i in idx if i not in wrong]
     return None
+
+
+def _law_stage(fs: ForceSamples, axis: str, *, seed: int = 0) -> tuple[SparseFit | None, str]:
+    """The best passing law fit of an axis: the dissipative velocity laws or the per-foot
+    law (:data:`PER_FOOT_FEATURES`), whichever removes more of the held-out error; (None,
+    "") when neither passes."""
+    best: tuple[SparseFit | None, str] = (None, "")
+    for stage, laws, dissipative in (("law", LAW_FEATURES, True),
+                                     ("per_foot", PER_FOOT_FEATURES, False)):
+        fit = law_fit(fs, axis, seed=seed, laws=laws, dissipative=dissipative)
+        ok = fit is not None and bool(fit.selected.any()) and axis_passes(
+            fit.heldout_reduction, fit.heldout_reduction_selected, fit.rmse_before,
+            fit.rmse_after, axis, MIN_LAW_FORCE)
+        if ok and (best[0] is None or fit.heldout_reduction_selected
+                   > best[0].heldout_reduction_selected):
+            best = (fit, stage)
+    return best
 
 
 def _on_all_features(fit: SparseFit, idx: np.ndarray) -> SparseFit:
@@ -163,10 +191,8 @@ def _force_proposal(problem: Problem, theta: Mapping[str, float], *, seed: int =
     hidden: list[str] = []
     for ax in AXES:
         # the physical laws first; the whole library only when no law passes
-        fit, stage = law_fit(fs, ax, seed=seed), "law"
-        ok = fit is not None and bool(fit.selected.any()) and axis_passes(
-            fit.heldout_reduction, fit.heldout_reduction_selected, fit.rmse_before,
-            fit.rmse_after, ax, MIN_LAW_FORCE)
+        fit, stage = _law_stage(fs, ax, seed=seed)
+        ok = fit is not None
         if not ok:
             fit, stage = sparse_fit(fs.features, fs.nuisance[ax][:, None], fs.target[ax],
                                     fs.trial, fs.window, seed=seed), "library"
@@ -182,8 +208,9 @@ def _force_proposal(problem: Problem, theta: Mapping[str, float], *, seed: int =
             if not f.expressible:
                 hidden.append(f"{ax}:{f.name}")
             c = float(fit.coef[k])
-            unit = "N" if f.unit == "1" else f"N/({f.unit})"
-            terms.append(ProposedTerm(ax, f.name, f.description, c, c / n_slices,
+            unit = "N" if f.unit == "1" else "-" if f.relative else f"N/({f.unit})"
+            terms.append(ProposedTerm(ax, f.name, f.description, c,
+                                      c if f.relative else c / n_slices,
                                       float(fit.stderr[k]), unit, float(fit.frequency[k]),
                                       f.expressible))
     return Proposal(PROPOSED_EFFECT, "", tuple(terms), tuple(axes), fs.n, n_st, note=NOTE,
@@ -240,9 +267,11 @@ def force_effect_source(p: Proposal, data: str = "") -> str:
     for t in terms:
         c = t.coefficient_patch
         bound = BOUND_FACTOR * abs(c) if c != 0 else 1.0
-        phys = (0.0, bound) if c > 0 else (-bound, 0.0)
+        # a share of the law's own force cannot take more than all of it
+        low = max(-bound, -1.0) if feature(t.feature).relative else -bound
+        phys = (0.0, bound) if c > 0 else (low, 0.0)
         doc = f"{AXIS_WORDS[t.axis]} per {t.description}, per patch"
-        lines.append(f"    {_param_name(t)!r}: Param({c:.6g}, {-bound:.6g}, {bound:.6g}, "
+        lines.append(f"    {_param_name(t)!r}: Param({c:.6g}, {low:.6g}, {bound:.6g}, "
                      f"{t.unit!r}, {doc!r}, physical=({phys[0]:.6g}, {phys[1]:.6g})),")
     lines += ["})", f"def {p.effect}(o, s, p):",
               '    """The proposed force on one contact patch [N], world frame."""']

@@ -53,8 +53,9 @@ class AxisFit(Record):
         rms_before, rms_after: in-sample RMS equation error [N] (ζ refitted; with the terms).
         threshold: the STLSQ threshold chosen by cross-validation (standardised).
         proposed: whether this axis contributes terms.
-        stage: ``law`` (the physical velocity laws alone, :data:`~.proposal.LAW_FEATURES`)
-            or ``library`` (the whole feature library).
+        stage: ``law`` (the physical velocity laws alone, :data:`~.proposal.LAW_FEATURES`),
+            ``per_foot`` (the right foot's share of the law's force alone,
+            :data:`~.proposal.PER_FOOT_FEATURES`) or ``library`` (the whole feature library).
     """
 
     axis: str
