@@ -128,6 +128,26 @@ def test_effects_go_to_the_plant_only_by_kind():
         build_plant_simulation(sc, ["cohesoin"])
 
 
+def test_joint_effects_step_on_the_compiled_plant():
+    """A data set with a joint effect is made on the compiled plant (it fell back to the
+    reference plant until session 26: the hook summed with ``np.asarray(…, float)``, which
+    CasADi symbols cannot pass); the hook gives the same torques on symbols as on floats."""
+    import casadi as ca
+
+    sc = load_scenario("sand_walk")
+    sim = build_plant_simulation(sc, ["joint_friction:coulomb=0.3,viscous=0.05"])
+    assert sim.plant_choice.resolved == "compiled", sim.plant_choice
+    hook = sim.plant.joint_effects[0]
+    q, dq = ca.SX.sym("q", 6), ca.SX.sym("dq", 6)
+    traced = ca.Function("tau", [q, dq], [hook(q, dq)])
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        qa, va = rng.normal(size=6), rng.normal(size=6)
+        expect = hook(qa, va)
+        assert np.abs(expect).max() > 0.05
+        assert np.allclose(np.array(traced(qa, va)).ravel(), expect, rtol=1e-12, atol=1e-14)
+
+
 def test_sensor_effect_on_the_record_and_seeded_noise(tmp_path, workbench_data, monkeypatch):
     """A sensor effect changes the recorded columns only (grf_z + 7 N on stance rows);
     noise with the same seed is the same. (The plant run itself is replaced by a recorded

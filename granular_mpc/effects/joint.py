@@ -46,9 +46,15 @@ def joint_torque_function(specs: Sequence[tuple[EffectInfo, Mapping[str, float]]
         return None
 
     def tau(q_a: np.ndarray, dq_a: np.ndarray) -> np.ndarray:
-        out = np.zeros_like(dq_a)
+        if isinstance(dq_a, np.ndarray):
+            out = np.zeros_like(dq_a)
+            for fn, p in items:
+                out = out + np.asarray(fn(q_a, dq_a, p), dtype=float)
+            return out
+        # CasADi symbols: the compiled plant traces the same sum (dynamics/step_sx.py)
+        out = 0.0 * dq_a
         for fn, p in items:
-            out = out + np.asarray(fn(q_a, dq_a, p), dtype=float)
+            out = out + fn(q_a, dq_a, p)
         return out
 
     return tau
