@@ -210,3 +210,15 @@ def test_cli_drop_channels(full, tmp_path):
     bad = CliRunner().invoke(app, ["drop-channels", str(full), "imu", "--out",
                                    str(tmp_path / "bad")])
     assert bad.exit_code == 2 and "unknown channel group" in bad.output
+
+
+def test_diagnosis_without_foot_force_says_so_instead_of_printing_nan(proprio, tmp_path):
+    """Joints and IMU only: the calibration has no sinking samples with a measured force;
+    the report says there was no equation-error fit (it printed "force residual nan N")."""
+    from granular_mpc.validation.diagnose import diagnose
+
+    d = diagnose(proprio, tmp_path / "diag", candidates=["joint_friction"], workers=1)
+    assert d.calibration.equation_error.n_samples == 0
+    md = (tmp_path / "diag" / "report.md").read_text()
+    assert "No equation-error fit: not calibrated by equation error" in md
+    assert "nan" not in md.lower().replace("nanosecond", "")

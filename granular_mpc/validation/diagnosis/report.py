@@ -220,9 +220,11 @@ def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
               "| 95 % CI (trial bootstrap) | after replay refit |",
               "|---|---|---|---|---|---|"]
     lines += _calibration_lines(d)
-    lines += ["", f"{eq.n_samples} sinking samples from {eq.n_stances} stances; "
-              f"force residual {eq.rmse_before:.2f} N → {eq.rmse_after:.2f} N. "
-              + eq.note, "",
+    fitted = eq.n_samples > 0 and math.isfinite(eq.rmse_before)
+    lines += ["", (f"{eq.n_samples} sinking samples from {eq.n_stances} stances; "
+                   f"force residual {eq.rmse_before:.2f} N → {eq.rmse_after:.2f} N. "
+                   if fitted else "No equation-error fit: ") + (
+                       eq.note or "no sinking samples with a measured foot force."), "",
               "## Candidate effects", "",
               "| rank | effect | kind | held-out error reduction | ΔAICc | inclusion | main coefficient | added |",
               "|---|---|---|---|---|---|---|---|"]
