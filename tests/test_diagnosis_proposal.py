@@ -15,8 +15,9 @@ from granular_mpc.validation.diagnosis.features import (FEATURES, feature, featu
 from granular_mpc.validation.diagnosis.joint_proposal import PROPOSED_JOINT, PROPOSED_SENSOR
 from granular_mpc.validation.diagnosis.proposal import (MIN_EXPLAINED_FORCE, PROPOSAL_FILE,
                                                         axis_passes, effect_source,
-                                                        effect_sources, pointed_proposal,
-                                                        propose_terms, write_proposal)
+                                                        effect_sources, law_fit,
+                                                        pointed_proposal, propose_terms,
+                                                        write_proposal)
 from granular_mpc.validation.diagnosis.proposal_records import (AxisFit, JointFit, JointTerm,
                                                                 Proposal, ProposedTerm,
                                                                 change_text)
@@ -353,7 +354,7 @@ def test_per_foot_law_proposes_nothing_when_the_feet_agree(axis):
 
 def test_effect_file_of_a_per_foot_share_acts_on_its_foot_only(tmp_path):
     """A proposed right-foot share of the law: per patch the same coefficient as per foot,
-    bounded below by −1 (a sole cannot lose more than all of the force), zero on the left
+    physical above −1 (a sole cannot lose more than all of the force), zero on the left
     foot, g·f_terrain on the right."""
     t = ProposedTerm("z", "right_law_z", feature("right_law_z").description, -0.3, -0.3,
                      0.01, "-", 1.0, True)
@@ -364,7 +365,7 @@ def test_effect_file_of_a_per_foot_share_acts_on_its_foot_only(tmp_path):
     assert load_effect_file(str(path)) == ["test_per_foot_force"]
     info = effect_info("test_per_foot_force")
     par = info.params["z_right_law_z"]
-    assert par.default == pytest.approx(-0.3) and par.lower == -1.0
+    assert par.default == pytest.approx(-0.3) and par.lower == pytest.approx(-6.0)
     assert par.physical_range == (-1.0, 0.0)
     p = {"z_right_law_z": -0.3}
     right, left = replace(_patch(-0.5), foot=1.0), replace(_patch(-0.5), foot=0.0)
@@ -401,3 +402,17 @@ def test_proposal_finds_a_worn_right_sole(tmp_path):
     terms = {t.feature: t for t in prop.terms if t.axis == "z"}
     assert set(terms) == {"right_law_z"}
     assert -0.45 < terms["right_law_z"].coefficient_patch < -0.15
+
+
+def test_a_share_below_minus_one_is_not_a_per_foot_law():
+    """A fitted share of −5 (the forward law's force is small: the share absorbs another
+    pattern) is not physical: the per-foot stage must not pass with it."""
+    from granular_mpc.validation.diagnosis.proposal import PER_FOOT_FEATURES, physical_shares
+
+    fs = _samples("right_law_z", -0.25, pattern=1.0, seed=6, law_nuisance=True)
+    fit = law_fit(fs, "z", seed=0, laws=PER_FOOT_FEATURES, dissipative=False)
+    assert physical_shares(fit)
+    k = feature_names().index("right_law_z")
+    coef = fit.coef.copy()
+    coef[k] = -5.0
+    assert not physical_shares(replace(fit, coef=coef))

@@ -148,6 +148,14 @@ def law_fit(fs: ForceSamples, axis: str, *, seed: int = 0,
     return None
 
 
+def physical_shares(fit: SparseFit) -> bool:
+    """Whether every selected share of the law's own force (:attr:`Feature.relative`) is
+    above −1: a foot cannot lose more than all of the law's force (on the forward axis,
+    where the law's force is small, a share of −5 has been fitted: not a worn sole)."""
+    return all(fit.coef[k] > -1.0 for k in np.flatnonzero(fit.selected)
+               if FEATURES[k].relative)
+
+
 def _law_stage(fs: ForceSamples, axis: str, *, seed: int = 0) -> tuple[SparseFit | None, str]:
     """The best passing law fit of an axis: the dissipative velocity laws or the per-foot
     law (:data:`PER_FOOT_FEATURES`), whichever removes more of the held-out error; (None,
@@ -158,7 +166,7 @@ def _law_stage(fs: ForceSamples, axis: str, *, seed: int = 0) -> tuple[SparseFit
         fit = law_fit(fs, axis, seed=seed, laws=laws, dissipative=dissipative)
         ok = fit is not None and bool(fit.selected.any()) and axis_passes(
             fit.heldout_reduction, fit.heldout_reduction_selected, fit.rmse_before,
-            fit.rmse_after, axis, MIN_LAW_FORCE)
+            fit.rmse_after, axis, MIN_LAW_FORCE) and physical_shares(fit)
         if ok and (best[0] is None or fit.heldout_reduction_selected
                    > best[0].heldout_reduction_selected):
             best = (fit, stage)
@@ -267,11 +275,11 @@ def force_effect_source(p: Proposal, data: str = "") -> str:
     for t in terms:
         c = t.coefficient_patch
         bound = BOUND_FACTOR * abs(c) if c != 0 else 1.0
-        # a share of the law's own force cannot take more than all of it
+        # a share of the law's own force cannot take away more than all of it
         low = max(-bound, -1.0) if feature(t.feature).relative else -bound
         phys = (0.0, bound) if c > 0 else (low, 0.0)
         doc = f"{AXIS_WORDS[t.axis]} per {t.description}, per patch"
-        lines.append(f"    {_param_name(t)!r}: Param({c:.6g}, {low:.6g}, {bound:.6g}, "
+        lines.append(f"    {_param_name(t)!r}: Param({c:.6g}, {-bound:.6g}, {bound:.6g}, "
                      f"{t.unit!r}, {doc!r}, physical=({phys[0]:.6g}, {phys[1]:.6g})),")
     lines += ["})", f"def {p.effect}(o, s, p):",
               '    """The proposed force on one contact patch [N], world frame."""']
@@ -366,5 +374,6 @@ def pointed_proposal(verdict: Verdict, best_candidate: str, p: Proposal | None,
 
 __all__ = ["proposed_effects", "pointed_proposal", "POINTING_VERDICTS", "propose_terms",
            "effect_source", "force_effect_source", "effect_sources", "write_proposal",
-           "proposal_sentence", "axis_passes", "law_fit", "LAW_FEATURES", "MIN_LAW_FORCE", "explained_rms", "PROPOSED_EFFECT",
+           "proposal_sentence", "axis_passes", "law_fit", "physical_shares", "LAW_FEATURES",
+           "PER_FOOT_FEATURES", "MIN_LAW_FORCE", "explained_rms", "PROPOSED_EFFECT",
            "PROPOSAL_FILE", "MIN_PROPOSAL_REDUCTION", "MIN_EXPLAINED_FORCE"]
