@@ -547,6 +547,24 @@ def drop_channels_(
 
 
 @app.command()
+def merge(
+    sources: Annotated[list[Path], typer.Argument(help="Two or more data sets of the same experiment (robot, rate, channels, ground).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder of the merged data set.")],
+    terrain: Annotated[Optional[str], typer.Option("--terrain", help="Ground description of the merged set, when the sources' descriptions differ.")] = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a data set there.")] = False,
+    debug: DebugOpt = False,
+) -> None:
+    """Merge the trials of several data sets into one (e.g. one imported log per trial)."""
+    from .validation.dataformat import load_dataset
+    from .validation.dataformat.merge import merge_datasets
+
+    with _errors(debug):
+        path = merge_datasets(sources, out, terrain=terrain, overwrite=overwrite)
+        print(load_dataset(path).channel_report())
+        print(f"wrote {path}")
+
+
+@app.command()
 def paper(
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder for paper_comparison.md, its figures and the runs.")],
     quick: Annotated[bool, typer.Option("--quick", help="Fewer, shorter runs (every row still filled; for tests).")] = False,

@@ -33,7 +33,8 @@ Public API: :class:`DatasetMeta` (+ :class:`TrialMeta`, :class:`GeneratorMeta`),
 :class:`FormatTolerances`, :class:`Dataset`, :func:`load_dataset`, :func:`check_dataset`,
 :func:`check_trials`, :func:`write_dataset`, :func:`stance_phases` /
 :class:`StancePhase`, :func:`format_columns`, :class:`ChannelGroup` / :class:`ChannelSet`,
-:class:`StanceDerivation` / :func:`derive_stance`.
+:class:`StanceDerivation` / :func:`derive_stance`, :func:`drop_channels`,
+:func:`merge_datasets`.
 
 Modules, one job each: :mod:`.meta` (the ``meta.yaml`` schema), :mod:`.tolerances`,
 :mod:`.dataset` (the loaded data set, stance phases), :mod:`.readers` (one CSV/Parquet
@@ -52,6 +53,7 @@ from .channels import ChannelGroup, ChannelSet, group_of_column
 from .dataset import Dataset, StancePhase, stance_phases
 from .drop import drop_channels
 from .load import check_dataset, load_dataset
+from .merge import merge_datasets
 from .meta import SCHEMA_VERSION, SUFFIXES, DatasetMeta, GeneratorMeta, TrialMeta, TrialName
 from .stance_derive import StanceDerivation, StanceSource, derive_stance
 from .tolerances import FormatTolerances
@@ -63,7 +65,7 @@ __all__ = [
     "Dataset", "StancePhase", "stance_phases", "format_columns", "joint_columns",
     "load_dataset", "check_dataset", "check_trials", "write_dataset",
     "ChannelGroup", "ChannelSet", "group_of_column", "StanceDerivation", "StanceSource",
-    "derive_stance", "drop_channels",
+    "derive_stance", "drop_channels", "merge_datasets",
     # also importable from here, as before the split
     "SUFFIXES", "TrialName", "JOINT_PREFIXES", "BASE_POSITION", "BASE_QUATERNION",
     "BASE_LINEAR_VELOCITY", "BASE_ANGULAR_VELOCITY",
