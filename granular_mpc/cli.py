@@ -486,6 +486,7 @@ def diagnose(
     terrain: TerrainOpt = "dry_sand",
     effect_file: EffectFileOpt = None,
     measurement: Annotated[bool, typer.Option("--measurement", help="Also test the measurement model: per-joint torque gain/offset, encoder offsets and gains, force-sensor gain, torque time offset, trunk attitude bias (granular_mpc.effects.measurement).")] = False,
+    variants: Annotated[bool, typer.Option("--variants", help="Also test per-foot and layered variants of the terrain law: stress_scale_left/right (one foot's track of other sand, a worn sole), stress_scale, hard_layer (granular_mpc.effects.variants).")] = False,
     workers: WorkersOpt = None,
     debug: DebugOpt = False,
 ) -> None:
@@ -496,6 +497,9 @@ def diagnose(
         if measurement:
             from .effects.measurement import register_measurement
             register_measurement()
+        if variants:
+            from .effects.variants import register_variants
+            register_variants()
         _load_effect_files(effect_file)
         if candidate:
             for c in candidate:

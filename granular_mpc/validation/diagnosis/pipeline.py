@@ -36,6 +36,7 @@ from .result import (CalibrationReport, Diagnosis, DesignSummary, LocalizationRe
                      NEffFactor, Recommended)
 from .screen import screen, screening_design
 from .strength import add_strength_sensitivity, strength_model, twin_suspects
+from .untested import with_untested
 from .verdict import VerdictInputs, best_candidate_statement, decide
 
 
@@ -151,6 +152,7 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     verdict = decide(vin)
     best = best_candidate_statement(vin)
     verdict, proposal = pointed_proposal(verdict, best, proposal, out, str(data_dir))
+    verdict = with_untested(verdict, best, cands.infos)
     reg = scr.regression
     design = DesignSummary(
         len(problem.windows), problem.n_trials, problem.channels, phase_bins, int(reg.y.size),
