@@ -356,6 +356,12 @@ def proposal_sentence(p: Proposal | None) -> str:
 POINTING_VERDICTS = ("unexplained_structure", "partially_explained")
 
 
+def not_a_clean_answer(verdict: Verdict, best_candidate: str) -> bool:
+    """Whether the verdict is one of :data:`POINTING_VERDICTS` or its best candidate is
+    only the closest proxy: the verdicts that point beyond the candidates."""
+    return verdict.status in POINTING_VERDICTS or "only the closest proxy" in best_candidate
+
+
 def pointed_proposal(verdict: Verdict, best_candidate: str, p: Proposal | None,
                      out_dir: Path | None, data: str = "") -> tuple[Verdict, Proposal | None]:
     """Write the proposal's effect file into ``out_dir`` and, when the verdict is
@@ -365,14 +371,14 @@ def pointed_proposal(verdict: Verdict, best_candidate: str, p: Proposal | None,
         return verdict, p
     if out_dir is not None:
         p = write_proposal(out_dir, p, data)
-    point = verdict.status in POINTING_VERDICTS or "only the closest proxy" in best_candidate
     sentence = proposal_sentence(p)
-    if not (point and sentence):
+    if not (not_a_clean_answer(verdict, best_candidate) and sentence):
         return verdict, p
     return replace(verdict, text=f"{verdict.text}. {sentence}"), replace(p, pointed_to=True)
 
 
-__all__ = ["proposed_effects", "pointed_proposal", "POINTING_VERDICTS", "propose_terms",
+__all__ = ["proposed_effects", "pointed_proposal", "POINTING_VERDICTS", "not_a_clean_answer",
+           "propose_terms",
            "effect_source", "force_effect_source", "effect_sources", "write_proposal",
            "proposal_sentence", "axis_passes", "law_fit", "physical_shares", "LAW_FEATURES",
            "PER_FOOT_FEATURES", "MIN_LAW_FORCE", "explained_rms", "PROPOSED_EFFECT",

@@ -13,19 +13,20 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Iterable, Mapping
 
-from .proposal import POINTING_VERDICTS
+from ...effects.variants import LAYERED_TAG, PER_FOOT_TAG
+from .proposal import not_a_clean_answer
 from .result import Verdict
 
-#: (tag of the family's effects, what it is and how to add it), in the order named.
-#: ``measurement`` is :data:`granular_mpc.effects.measurement.TAG` (not imported here:
-#: importing that module registers the family); ``per_foot`` / ``layered`` are
-#: :data:`granular_mpc.effects.variants.PER_FOOT_TAG` / ``LAYERED_TAG``
+#: :data:`granular_mpc.effects.measurement.TAG` (not imported: importing that module
+#: registers the family)
+MEASUREMENT_TAG = "measurement"
+#: (tags of the family's effects, what it is and how to add it), in the order named
 OPT_IN_FAMILIES: tuple[tuple[tuple[str, ...], str], ...] = (
-    (("measurement",), "the measurement model (torque gain and offset, encoder offset and "
-                       "gain, force-sensor gain, torque delay, trunk attitude bias: "
-                       "--measurement)"),
-    (("per_foot", "layered"), "the per-foot and layered variants of the terrain law (one "
-                              "foot's track or sole, a harder layer: --variants)"),
+    ((MEASUREMENT_TAG,), "the measurement model (torque gain and offset, encoder offset and "
+                         "gain, force-sensor gain, torque delay, trunk attitude bias: "
+                         "--measurement)"),
+    ((PER_FOOT_TAG, LAYERED_TAG), "the per-foot and layered variants of the terrain law (one "
+                                  "foot's track or sole, a harder layer: --variants)"),
 )
 
 
@@ -45,9 +46,8 @@ def untested_sentence(infos: Mapping[str, object]) -> str:
 
 def with_untested(verdict: Verdict, best_candidate: str, infos: Mapping[str, object]) -> Verdict:
     """``verdict`` with :func:`untested_sentence` appended when it is not a clean answer
-    (a verdict of :data:`~.proposal.POINTING_VERDICTS`, or a best candidate that is only
-    the closest proxy)."""
-    if not (verdict.status in POINTING_VERDICTS or "only the closest proxy" in best_candidate):
+    (:func:`~.proposal.not_a_clean_answer`)."""
+    if not not_a_clean_answer(verdict, best_candidate):
         return verdict
     sentence = untested_sentence(infos)
     if not sentence:
@@ -55,4 +55,4 @@ def with_untested(verdict: Verdict, best_candidate: str, infos: Mapping[str, obj
     return replace(verdict, text=f"{verdict.text}. {sentence}")
 
 
-__all__ = ["OPT_IN_FAMILIES", "untested_families", "untested_sentence", "with_untested"]
+__all__ = ["MEASUREMENT_TAG", "OPT_IN_FAMILIES", "untested_families", "untested_sentence", "with_untested"]
