@@ -46,15 +46,13 @@ def joint_torque_function(specs: Sequence[tuple[EffectInfo, Mapping[str, float]]
         return None
 
     def tau(q_a: np.ndarray, dq_a: np.ndarray) -> np.ndarray:
-        if isinstance(dq_a, np.ndarray):
-            out = np.zeros_like(dq_a)
-            for fn, p in items:
-                out = out + np.asarray(fn(q_a, dq_a, p), dtype=float)
-            return out
-        # CasADi symbols: the compiled plant traces the same sum (dynamics/step_sx.py)
-        out = 0.0 * dq_a
+        # on CasADi symbols the terms are summed as they are: the compiled plant traces
+        # the same sum (dynamics/step_sx.py)
+        numeric = isinstance(dq_a, np.ndarray)
+        out = np.zeros_like(dq_a) if numeric else 0.0 * dq_a
         for fn, p in items:
-            out = out + fn(q_a, dq_a, p)
+            term = fn(q_a, dq_a, p)
+            out = out + (np.asarray(term, dtype=float) if numeric else term)
         return out
 
     return tau
