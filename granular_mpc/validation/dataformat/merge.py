@@ -15,6 +15,7 @@ the synthetic generator's record only when all sources share it.
 from __future__ import annotations
 
 import re
+from collections import Counter
 from pathlib import Path
 from typing import Literal, Sequence
 
@@ -82,10 +83,7 @@ def merge_datasets(sources: Sequence[str | Path], out_dir: str | Path, *,
     _same(datasets, "channels", [str(d.channels) for d in datasets])
     if terrain is None:
         _same(datasets, "terrain", [d.meta.terrain for d in datasets])
-    counts: dict[str, int] = {}
-    for d in datasets:
-        for n in d.trials:
-            counts[n] = counts.get(n, 0) + 1
+    counts = Counter(n for d in datasets for n in d.trials)
     trials, entries, origin = {}, {}, []
     for d in datasets:
         names = []
@@ -97,9 +95,7 @@ def merge_datasets(sources: Sequence[str | Path], out_dir: str | Path, *,
                                   key="trials", value=new)
             # labels the loader derived are derived again from the merged files
             trials[new] = df.drop(columns=[STANCE]) if n in d.stance_derivations else df
-            entry = d.meta.trials[n]
-            entries[new] = {"commanded_speed_mps": entry.commanded_speed_mps,
-                            "description": entry.description}
+            entries[new] = d.meta.trials[n].model_dump(exclude={"file"})   # file: write's
             names.append(new if new == n else f"{n} → {new}")
         origin.append(f"{d.path} ({', '.join(names)})")
     gens = [d.meta.generator for d in datasets]
