@@ -276,6 +276,23 @@ def _samples(law=None, coef=0.0, pattern=0.0, seed=0, n_stances=24, per=18,
     return ForceSamples({"z": y, "h": y}, nuis, F, trial, window, c["foot"], 2)
 
 
+def _law_passes(fit, axis) -> bool:
+    """Whether a law fit passes its axis rule with the law thresholds."""
+    from granular_mpc.validation.diagnosis.proposal import MIN_LAW_FORCE
+
+    return fit is not None and axis_passes(fit.heldout_reduction,
+                                           fit.heldout_reduction_selected, fit.rmse_before,
+                                           fit.rmse_after, axis, MIN_LAW_FORCE)
+
+
+def _assert_recovered(fit, law, coef, axis):
+    """``law`` selected, its coefficient within 15 % of ``coef``, and the axis passes."""
+    k = feature_names().index(law)
+    assert fit is not None and fit.selected[k]
+    assert fit.coef[k] == pytest.approx(coef, rel=0.15)
+    assert _law_passes(fit, axis)
+
+
 @pytest.mark.parametrize("law,axis,coef", [("v_h_abs_v_h", "h", -300.0),
                                            ("sign_v_h", "h", -12.0),
                                            ("v_z", "z", -25.0)])
@@ -283,33 +300,19 @@ def test_law_fit_recovers_a_dissipative_law_and_passes(law, axis, coef):
     """A force residual made of one physical law (quadratic drag, Coulomb offset, linear
     damping; foot level) under a null-like pattern and noise: the law stage selects it,
     with its coefficient within 15 %, and the axis passes with the law thresholds."""
-    from granular_mpc.validation.diagnosis.proposal import MIN_LAW_FORCE, law_fit
-
-    fs = _samples(law, coef, pattern=3.0, seed=2)
-    fit = law_fit(fs, axis, seed=0)
-    k = feature_names().index(law)
-    assert fit is not None and fit.selected[k]
-    assert fit.coef[k] == pytest.approx(coef, rel=0.15)
-    assert axis_passes(fit.heldout_reduction, fit.heldout_reduction_selected,
-                       fit.rmse_before, fit.rmse_after, axis, MIN_LAW_FORCE)
+    _assert_recovered(law_fit(_samples(law, coef, pattern=3.0, seed=2), axis, seed=0),
+                      law, coef, axis)
 
 
 @pytest.mark.parametrize("axis", ["z", "h"])
 def test_law_fit_proposes_nothing_on_a_null_residual(axis):
     """Noise plus a null-like pattern (no velocity law): the law stage does not pass."""
-    from granular_mpc.validation.diagnosis.proposal import MIN_LAW_FORCE, law_fit
-
     for seed in (3, 4):
-        fit = law_fit(_samples(pattern=3.0, seed=seed), axis, seed=0)
-        assert fit is None or not axis_passes(
-            fit.heldout_reduction, fit.heldout_reduction_selected, fit.rmse_before,
-            fit.rmse_after, axis, MIN_LAW_FORCE)
+        assert not _law_passes(law_fit(_samples(pattern=3.0, seed=seed), axis, seed=0), axis)
 
 
 def test_law_fit_drops_a_law_of_the_wrong_physical_sign():
     """A force *along* the motion (v_h·|v_h| > 0: no drag) is not kept as a law."""
-    from granular_mpc.validation.diagnosis.proposal import law_fit
-
     fit = law_fit(_samples("v_h_abs_v_h", +300.0, seed=5), "h", seed=0)
     assert fit is None or not (fit.coef > 0).any()
     assert fit is None or not fit.selected[feature_names().index("v_h_abs_v_h")]
@@ -322,34 +325,26 @@ def test_per_foot_law_recovers_one_foots_share_of_the_law(axis, coef):
     (ζ free for the common scale) selects it with g within 15 % and the axis passes.
     (The stage has no term for a pattern common to both feet: at 3 N the forward share
     comes out 17 % high — a hypothesis the replays refit, as the worn sole below.)"""
-    from granular_mpc.validation.diagnosis.proposal import (MIN_LAW_FORCE, PER_FOOT_FEATURES,
-                                                            law_fit)
+    from granular_mpc.validation.diagnosis.proposal import PER_FOOT_FEATURES
 
     law = PER_FOOT_FEATURES[axis][0]
     fs = _samples(law, coef, pattern=1.0, seed=6, law_nuisance=True)
-    fit = law_fit(fs, axis, seed=0, laws=PER_FOOT_FEATURES, dissipative=False)
-    k = feature_names().index(law)
-    assert fit is not None and fit.selected[k]
-    assert fit.coef[k] == pytest.approx(coef, rel=0.15)
-    assert axis_passes(fit.heldout_reduction, fit.heldout_reduction_selected,
-                       fit.rmse_before, fit.rmse_after, axis, MIN_LAW_FORCE)
+    _assert_recovered(law_fit(fs, axis, seed=0, laws=PER_FOOT_FEATURES, dissipative=False),
+                      law, coef, axis)
 
 
 @pytest.mark.parametrize("axis", ["z", "h"])
 def test_per_foot_law_proposes_nothing_when_the_feet_agree(axis):
     """The same law on both feet (a common scale, which ζ carries) plus the null-like
     pattern: the per-foot stage does not pass."""
-    from granular_mpc.validation.diagnosis.proposal import (MIN_LAW_FORCE, PER_FOOT_FEATURES,
-                                                            law_fit)
+    from granular_mpc.validation.diagnosis.proposal import PER_FOOT_FEATURES
 
     for seed in (3, 4):
         fs = _samples(pattern=3.0, seed=seed, law_nuisance=True)
         both = {a: fs.target[a] + 0.3 * 1.36 * fs.nuisance[a] for a in ("z", "h")}
         fs = type(fs)(both, fs.nuisance, fs.features, fs.trial, fs.window, fs.foot, 2)
         fit = law_fit(fs, axis, seed=0, laws=PER_FOOT_FEATURES, dissipative=False)
-        assert fit is None or not axis_passes(
-            fit.heldout_reduction, fit.heldout_reduction_selected, fit.rmse_before,
-            fit.rmse_after, axis, MIN_LAW_FORCE)
+        assert not _law_passes(fit, axis)
 
 
 def test_effect_file_of_a_per_foot_share_acts_on_its_foot_only(tmp_path):
