@@ -16,8 +16,9 @@ from granular_mpc.effects import effect_info, load_effect_file
 from granular_mpc.robot.model import load_biped
 from granular_mpc.rotations import matrix_from_quat_xyzw
 from granular_mpc.validation.diagnosis.joint_proposal import (
-    MAX_SENSOR_GAIN, MIN_EXPLAINED_RMS, PROPOSED_JOINT, PROPOSED_SENSOR, fit_joint_terms,
-    joint_effect_source, joint_passes, joint_samples, joint_torque, sensor_gain)
+    MAX_SENSOR_GAIN, MIN_EXPLAINED_RMS, PROPOSED_JOINT, PROPOSED_SENSOR, SKIP_AFTER,
+    SMOOTH_WINDOW, fit_joint_terms, footprint_exit, joint_effect_source, joint_passes,
+    joint_samples, joint_torque, kept_rows, sensor_gain)
 
 RATE = 500.0
 B_VISCOUS = 0.4          # hidden viscous joint torque −b·q̇ [N·m·s/rad]
@@ -169,3 +170,30 @@ def test_each_joint_axis_effect_can_be_emitted_alone(biped, damped):
     assert text.startswith('"""') and text.count("@register_") == 1
     assert f"--effect-file {PROPOSED_JOINT}.py" in text
     assert joint_effect_source(terms, fits, biped.joint_names, effects=(PROPOSED_SENSOR,)) == ""
+
+
+def test_rows_wait_for_the_trailing_foot_to_leave_its_footprint():
+    """After a stance change the trailing foot is held by the sand until its sole rises
+    above the height it touched down at; those rows (and half a smoothing window) are
+    dropped even when that takes longer than the fixed ``SKIP_AFTER``."""
+    n = 600
+    stance = np.array(["none"] * 20 + ["left"] * 180 + ["right"] * 200 + ["left"] * 200)
+    sole_z = np.full((n, 2), 0.05)
+    # the left foot touches down at row 20 at z = 0.01, sinks 30 mm, and after the change at
+    # row 200 rises through its touchdown height at row 271 (142 ms later at 500 Hz)
+    k = np.arange(20, 200)
+    sole_z[20:200, 0] = 0.01 - 0.03 * np.clip((k - 22) / 50.0, 0.0, 1.0)
+    sole_z[200:400, 0] = -0.02 + 0.03 * np.arange(200) / 70.5
+    sole_z[200:400, 1] = 0.0                                # right: touches down at row 200
+    sole_z[400:, 1] = -0.0105 + 0.001 * np.arange(200)      # ... and leaves at row 411
+    assert footprint_exit(stance, sole_z, 200) == 271       # first row above 0.01 m
+    assert footprint_exit(stance, sole_z, 400) == 411
+    sole_z[400:, 1] = -0.01                                 # still in the sand at the end
+    assert footprint_exit(stance, sole_z, 400) == n
+    assert footprint_exit(stance, sole_z, 20) is None         # a change from "none"
+    fixed = kept_rows(stance, RATE)
+    waited = kept_rows(stance, RATE, sole_z)
+    blur = int(round(0.5 * SMOOTH_WINDOW * RATE))
+    assert fixed[200 + int(round(SKIP_AFTER * RATE))]            # the fixed rule keeps row 245
+    assert not waited[200:271 + blur].any() and waited[271 + blur]
+    np.testing.assert_array_equal(waited[:200], fixed[:200])

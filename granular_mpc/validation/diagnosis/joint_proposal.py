@@ -13,8 +13,9 @@ measured foot force applied at the stance sole's lowest arc point). q̈ (and the
 twist rate) is a Savitzky–Golay derivative; τ and the foot force get the same smoothing,
 so the two sides of the equation see the same time blur (a torque held between
 controller ticks against a smoothed acceleration is a 1 N·m error otherwise). Rows near a
-stance change are dropped: the impact, and the trailing foot still held by the sand for
-≈ 60 ms after the label moved to the other foot (no force is measured on it).
+stance change are dropped: the impact, and the trailing foot still held by the sand after
+the label moved to the other foot (no force is measured on it) — at least until its sole
+is back above the height it touched down at (:func:`footprint_exit`).
 
 Per joint, ``e_j`` is fitted with the sparse machinery of the force proposal
 (:func:`.sparse.sparse_fit`: STLSQ, trial-grouped CV, stability selection over resampled
@@ -40,7 +41,7 @@ import pinocchio as pin
 from scipy.signal import savgol_filter
 
 from ...columns import (BASE_ANGULAR_VELOCITY, BASE_LINEAR_VELOCITY, BASE_POSITION,
-                        BASE_QUATERNION, GRF_COLUMNS, STANCE, joint_columns)
+                        BASE_QUATERNION, FOOT_SIDES, GRF_COLUMNS, STANCE, joint_columns)
 from ...robot.model import Biped
 from ...rotations import matrix_from_quat_xyzw, xyzw_from_wxyz
 from .proposal_records import JointFit, JointTerm, change_text
@@ -52,6 +53,8 @@ SMOOTH_ORDER = 3
 #: rows dropped before / after every stance change [s] (impact; trailing foot in the sand)
 SKIP_BEFORE = 0.024
 SKIP_AFTER = 0.09
+#: rows after a touchdown whose mean sole height is taken as the sand's surface there
+TOUCHDOWN_ROWS = 3
 #: fit the swing leg's rows only: on the stance leg the equation error carries a
 #: systematic ≈ 1 N·m (the centre of pressure of the sole in the sand, not measured) that
 #: on null data makes a false knee term (measured: const + q + τ terms on both knees)
@@ -91,7 +94,8 @@ SCALE_PARAM = ("    'scale': Param(1.0, 0.0, 3.0, '-', 'scale of the proposed {w
 
 JOINT_NOTE = ("joint torque equation error at the measured state (RNEA on the floating "
               "base with the measured foot force, minus the measured torque; rows near "
-              "stance changes dropped; the swing leg's rows only), fitted per joint on "
+              "stance changes and until the trailing foot has left its footprint dropped; "
+              "the swing leg's rows only), fitted per joint on "
               "const, q, q̇, tanh(q̇/0.05), τ by the force proposal's STLSQ + "
               "trial-grouped CV + stability selection.")
 
@@ -161,34 +165,74 @@ def trial_equation_error(df, biped: Biped, rate_hz: float) -> dict[str, np.ndarr
     stance = df[STANCE].astype(str).to_numpy()
     radius = float(biped.config.foot.radius)
     err = np.zeros((n, len(J)))
+    sole_z = np.zeros((n, len(FOOT_SIDES)))
     grf_rows = grf.tolist()
     zero = [pin.Force.Zero() for _ in range(m.njoints)]
+    frames = [biped.foot_frame[side] for side in FOOT_SIDES]
     for k in range(n):
         fext = pin.StdVec_Force()
         for f in zero:
             fext.append(f)
         side = stance[k]
+        pin.forwardKinematics(m, data, Q[k])
+        for i, fid in enumerate(frames):
+            sole_z[k, i] = pin.updateFramePlacement(m, data, fid).translation[2] - radius
         if side in biped.foot_frame:
-            pin.forwardKinematics(m, data, Q[k])
             fid, jid = biped.foot_frame[side], biped.foot_joint[side]
-            a0, a1, a2 = pin.updateFramePlacement(m, data, fid).translation
-            a2 = a2 - radius
+            a0, a1, _ = data.oMf[fid].translation
+            a2 = sole_z[k, FOOT_SIDES.index(side)]
             b0, b1, b2 = grf_rows[k]
             # pt × grf, the same operations as np.cross (a fraction of its cost per row)
             moment = np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
             fext[jid] = data.oMi[jid].actInv(pin.Force(grf[k], moment))
         err[k] = pin.rnea(m, data, Q[k], Vs[k], A[k], fext)[biped.idx_v] - tau_s[k]
     return {"error": err, "q": Qs_a, "dq": Vs[:, biped.idx_v], "tau": tau_s, "grf": grf,
-            "stance": stance}
+            "stance": stance, "sole_z": sole_z}
 
 
-def kept_rows(stance: np.ndarray, rate_hz: float) -> np.ndarray:
-    """Rows away from every stance change (and from the trial's ends)."""
+def footprint_exit(stance: np.ndarray, sole_z: np.ndarray, change: int) -> int | None:
+    """The first row at or after the stance change at row ``change`` at which the trailing
+    foot (the one whose stance ended there) has left its footprint: its sole's lowest point
+    above the height it had at its own touchdown (the sand's surface there).
+
+    Returns None when that foot's touchdown is not in the trial; the next stance change
+    (or the trial's end) when it has not left by then.
+    """
+    trailing = str(stance[change - 1])
+    if trailing not in FOOT_SIDES:
+        return None
+    changes = np.flatnonzero(stance[1:change] != stance[:change - 1]) + 1
+    touchdowns = changes[stance[changes] == trailing]
+    if touchdowns.size == 0:
+        return None
+    f = FOOT_SIDES.index(trailing)
+    td = int(touchdowns[-1])
+    surface = float(np.mean(sole_z[td:td + TOUCHDOWN_ROWS, f]))
+    later = np.flatnonzero(stance[change + 1:] != stance[change:-1])
+    end = change + 1 + int(later[0]) if later.size else stance.size
+    out = np.flatnonzero(sole_z[change:end, f] > surface)
+    return change + int(out[0]) if out.size else end
+
+
+def kept_rows(stance: np.ndarray, rate_hz: float, sole_z: np.ndarray | None = None
+              ) -> np.ndarray:
+    """Rows away from every stance change (and from the trial's ends).
+
+    With ``sole_z`` ((rows, 2) lowest sole point of each foot [m], :data:`FOOT_SIDES`
+    order) the rows after a change are dropped at least until the trailing foot has left
+    its footprint (:func:`footprint_exit`) and half a smoothing window more: the sand holds
+    it, with no force measured on it, for ≈ 80 ms on the model's own gait but longer when
+    an effect changes the gait (112 ms with a 3 N·m/rad knee spring, measured)."""
     n = stance.size
     ok = np.ones(n, bool)
     before, after = int(round(SKIP_BEFORE * rate_hz)), int(round(SKIP_AFTER * rate_hz))
+    blur = int(round(0.5 * SMOOTH_WINDOW * rate_hz))
     for i in np.flatnonzero(stance[1:] != stance[:-1]) + 1:
-        ok[max(0, i - before):i + after] = False
+        stop = i + after
+        if sole_z is not None:
+            out = footprint_exit(stance, sole_z, int(i))
+            stop = max(stop, out + blur) if out is not None else stop
+        ok[max(0, i - before):stop] = False
     ok[:after] = False
     ok[max(0, n - after):] = False
     return ok & (stance != "none")
@@ -201,7 +245,7 @@ def joint_samples(trials, biped: Biped, rate_hz: float) -> JointSamples:
     parts: dict[str, list] = {k: [] for k in ("error", "q", "dq", "tau", "st", "fz", "trial", "unit")}
     for name, df in trials.items():
         r = trial_equation_error(df, biped, rate_hz)
-        ok = kept_rows(r["stance"], rate_hz)
+        ok = kept_rows(r["stance"], rate_hz, r["sole_z"])
         seg = np.cumsum(np.r_[0, r["stance"][1:] != r["stance"][:-1]])
         for k in ("error", "q", "dq", "tau"):
             parts[k].append(r[k][ok])
@@ -416,7 +460,7 @@ def joint_effect_names(terms: Sequence[JointTerm]) -> tuple[str, ...]:
     return tuple(out)
 
 
-__all__ = ["JointSamples", "joint_samples", "trial_equation_error", "kept_rows",
+__all__ = ["JointSamples", "joint_samples", "trial_equation_error", "kept_rows", "footprint_exit",
            "feature_matrix", "nuisance_matrix", "fit_joint_terms", "propose_joint_terms",
            "joint_torque", "joint_effect_source", "joint_effect_names", "joint_report_lines",
            "JOINT_FEATURES", "PROPOSED_JOINT", "PROPOSED_SENSOR", "MIN_JOINT_REDUCTION",
