@@ -167,3 +167,47 @@ def test_the_twin_test_runs_at_the_strength_the_data_ask_for(seed):
     assert strength_twin(linear, ["calibration.zeta"], "depth_hardening", [DH], 0.3,
                          {PHI: PHI_FILE_RAD},
                          StrengthModel(PHI, (PHI_FILE_RAD, PHI_FILE_RAD + d_phi), without)) is None
+
+
+def test_a_candidate_exempt_from_the_twin_test_keeps_its_significance():
+    """``not_twins`` (the torque-side candidates when the joint equations show a torque
+    discrepancy, :func:`strength.not_twins`): the twin test is not applied to them."""
+    reg = _design("phi_s", 0)
+    cols = {"depth_hardening": [Column("depth_hardening", "n", 1.0, 0.5, 1.0, 3.0)]}
+    args = (reg, ["calibration.zeta"], {"depth_hardening": [DH]}, cols,
+            {"depth_hardening": effect_info("depth_hardening")})
+    (tested,) = candidate_stats(*args, n_boot=40, seed=0, max_effects=1)
+    (exempt,) = candidate_stats(*args, n_boot=40, seed=0, max_effects=1,
+                                not_twins={"depth_hardening"})
+    assert not tested.significant and exempt.significant
+    assert exempt.heldout_error_reduction == tested.heldout_error_reduction
+
+
+def test_torque_side_candidates_are_no_twins_only_with_a_joint_discrepancy(workbench_data):
+    """Joint effects and sensor effects on ``tau_*`` are the torque side; they are exempt
+    from the twin test only when the joint-axis proposal passed on some joint."""
+    from granular_mpc.effects import Param, register_sensor_effect, registered_effects
+    from granular_mpc.validation.diagnosis.candidates import build_candidates
+    from granular_mpc.validation.diagnosis.problem import load_problem
+    from granular_mpc.validation.diagnosis.proposal_records import JointFit, Proposal
+    from granular_mpc.validation.diagnosis.strength import not_twins, torque_side
+
+    if "_test_tau_gain" not in registered_effects():
+        @register_sensor_effect("_test_tau_gain", params={"g": Param(0.1, -0.5, 0.5)},
+                                main="g", neutral={"g": 0.0})
+        def _gain(cols, p, ctx):
+            return {c: (1.0 + p["g"]) * np.asarray(v, float) for c, v in cols.items()
+                    if c.startswith("tau_")}
+
+    problem = load_problem(workbench_data("null"))
+    cands = build_candidates(["joint_friction", "force_sensor_bias", "inertial_drag",
+                              "_test_tau_gain"])
+    assert torque_side(cands, problem) == {"joint_friction", "_test_tau_gain"}
+
+    def proposal(passed: bool) -> Proposal:
+        return Proposal("p", "", (), (), 0, 0,
+                        joint_fits=(JointFit("left_knee", 0.8, 0.8, 0.5, 0.1, passed),))
+
+    assert not_twins(cands, problem, None) == frozenset()
+    assert not_twins(cands, problem, proposal(False)) == frozenset()
+    assert not_twins(cands, problem, proposal(True)) == {"joint_friction", "_test_tau_gain"}

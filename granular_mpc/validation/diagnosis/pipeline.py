@@ -35,7 +35,7 @@ from .residuals import compute_residuals, replay_rmse
 from .result import (CalibrationReport, Diagnosis, DesignSummary, LocalizationReport,
                      NEffFactor, Recommended)
 from .screen import screen, screening_design
-from .strength import add_strength_sensitivity, strength_model, twin_suspects
+from .strength import add_strength_sensitivity, not_twins, strength_model, twin_suspects
 from .untested import with_untested
 from .verdict import VerdictInputs, best_candidate_statement, decide
 
@@ -133,7 +133,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
                 sd = replace(sd, strength_model=strength)
         timing["design"] = _time.perf_counter() - t0
         t0 = _time.perf_counter()
-        scr = screen(problem, cands, sd, n_boot=n_boot, seed=seed, max_effects=max_effects)
+        scr = screen(problem, cands, sd, n_boot=n_boot, seed=seed, max_effects=max_effects,
+                     not_twins=not_twins(cands, problem, proposal))
         timing["rank"] = _time.perf_counter() - t0
         t0 = _time.perf_counter()
         ref = refine(problem, cands, cal, res, scr, pool, n_boot=n_boot, seed=seed,

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Collection, Mapping, Sequence
 
 import numpy as np
 
@@ -54,7 +54,8 @@ def candidate_stats(reg: Regression, base_keys: Sequence[str],
                     cand_keys: Mapping[str, list[str]],
                     cand_cols: Mapping[str, Sequence[Column]], infos: Mapping, *, n_boot: int,
                     seed: int, max_effects: int,
-                    strength_model: StrengthModel | None = None) -> list[CandidateStats]:
+                    strength_model: StrengthModel | None = None,
+                    not_twins: Collection[str] = ()) -> list[CandidateStats]:
     """Statistics of every candidate in ``cand_keys`` against the model ``base_keys``:
     held-out error reduction (systematic rows; stance rows under the same fit), ΔAICc,
     bootstrap inclusion probability, fitted parameters with intervals, significance.
@@ -94,7 +95,7 @@ def candidate_stats(reg: Regression, base_keys: Sequence[str],
     # a candidate that a terrain-strength mismatch explains as well is not significant
     # (strength.py; only when the regression has the strength columns)
     for r in rows:
-        if passes_but_inclusion(r) and strength_twin(
+        if r["effect"] not in not_twins and passes_but_inclusion(r) and strength_twin(
                 reg, base_keys, r["effect"], cand_keys[r["effect"]],
                 r["heldout_error_reduction"], {}, strength_model) is not None:
             r["strength_twin"] = True
@@ -371,15 +372,17 @@ def screening_design(problem: Problem, candidates: CandidateSet, nuisance: Seque
 
 
 def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, *,
-           n_boot: int, seed: int, max_effects: int) -> Screening:
+           n_boot: int, seed: int, max_effects: int,
+           not_twins: Collection[str] = ()) -> Screening:
     """Rank every candidate against the calibrated model and find the indistinguishable
-    leading pairs."""
+    leading pairs; ``not_twins``: candidates not tested as terrain-strength twins
+    (:func:`.strength.not_twins`)."""
     base_keys = list(design.base_keys)
     reg = design.regression
     cand_keys = candidates.keys
     ranking = candidate_stats(reg, base_keys, cand_keys, candidates.columns, candidates.infos,
                               n_boot=n_boot, seed=seed, max_effects=max_effects,
-                              strength_model=design.strength_model)
+                              strength_model=design.strength_model, not_twins=not_twins)
     pairs = indistinguishable(reg, base_keys, cand_keys, ranking, problem.windows,
                               candidates.infos,
                               Regression(design.regressions.stance, design.bounds, base_keys,
@@ -390,7 +393,7 @@ def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, 
         stats = dict(heldout_error_reduction=r.heldout_error_reduction,
                      delta_aicc=r.delta_aicc, effect_size=r.effect_size,
                      heldout_error_reduction_stance=r.heldout_error_reduction_stance)
-        if neutral and passes_but_inclusion(stats):
+        if neutral and r.effect not in not_twins and passes_but_inclusion(stats):
             tw = strength_twin(reg, base_keys, r.effect, cand_keys[r.effect],
                                r.heldout_error_reduction, neutral, design.strength_model)
             if tw is not None:

@@ -19,6 +19,15 @@ explains what it explained, with the φ_s the linear fit asks for. A real effect
 evidence (``depth_hardening`` n = 1.5: held-out −79 % alone, −59 % given φ_s) and is fitted
 exactly as before: the φ_s column is never part of its fit.
 
+**Torque-side candidates are no twins when the joint equations show a torque
+discrepancy** (:func:`not_twins`). φ_s changes the foot force the terrain law gives; it
+cannot change the joint-torque equation error at the measured state (RNEA with the
+*measured* foot force minus the measured torque, :mod:`.joint_proposal`). When that error
+passes the joint-axis proposal's evidence rule on some joint (a discrepancy nulls do not
+show), a joint effect or a sensor effect on ``tau_*`` has evidence a φ_s mismatch cannot
+imitate, and is not tested as a twin. Measured (``docs/validation.md`` §5.3.6): a
+torque-sensor gain of 0.2 was otherwise called "indistinguishable from φ_s = 29.5°".
+
 The derivative at the file's φ_s is a poor column for a plant 5° weaker (the response is
 far from linear there), so the test runs against the model replayed at the φ_s the data
 ask for (:func:`strength_model`: Gauss–Newton steps on ζ and φ_s by replays, then every
@@ -31,12 +40,16 @@ import math
 from dataclasses import dataclass, replace
 from typing import Mapping, Sequence
 
+from ...columns import joint_columns
+
+from ..replay.measurement import check_sensor_specs
 from ..replay.pool import ReplayPool
 from .acceptance_records import StrengthTwin
 from .calibration import STRENGTH, CalibrationStage, nuisance_columns
 from .candidates import CandidateSet, diverged_candidates
 from .cubes import group_keys, pred_cube, residual_cube
 from .problem import Problem
+from .proposal_records import Proposal
 from .regression import Regression, RegressionBuilder
 from .residuals import Residuals, compute_residuals, guard_jumps
 from .thresholds import MAX_DELTA_AICC, MIN_HELDOUT_REDUCTION
@@ -255,5 +268,31 @@ def strength_twin(reg: Regression, base_keys: Sequence[str], effect: str,
                         float(1.0 - cv_s / cv0) if cv0 > 0 else 0.0, fitted, filed)
 
 
-__all__ = ["StrengthTwin", "StrengthModel", "add_strength_sensitivity", "strength_model",
+def torque_side(candidates: CandidateSet, problem: Problem) -> frozenset[str]:
+    """The candidates acting on the joint side of the equations of motion: joint effects,
+    and sensor effects that change a ``tau_*`` column (tried at their default parameters
+    on the first stance window)."""
+    infos = candidates.infos
+    out = {n for n, info in infos.items() if info.kind == "joint"}
+    sensors = [(info, info.resolve_params({})) for info in infos.values()
+               if info.kind == "sensor"]
+    if sensors:
+        tau = set(joint_columns(problem.joint_names, "tau"))
+        changed = check_sensor_specs(sensors, problem.windows[0], problem.joint_names)
+        out |= {n for n, cols in changed.items() if tau & set(cols)}
+    return frozenset(out)
+
+
+def not_twins(candidates: CandidateSet, problem: Problem,
+              proposal: Proposal | None) -> frozenset[str]:
+    """The candidates no strength-twin test applies to: the torque-side ones
+    (:func:`torque_side`) when the joint-torque equation error passed the joint-axis
+    proposal's evidence rule on some joint (``proposal.joint_fits``) — a discrepancy a
+    terrain-strength mismatch cannot produce (module docstring). Empty otherwise."""
+    if proposal is None or not any(f.proposed for f in proposal.joint_fits):
+        return frozenset()
+    return torque_side(candidates, problem)
+
+
+__all__ = ["torque_side", "not_twins", "StrengthTwin", "StrengthModel", "add_strength_sensitivity", "strength_model",
            "strength_keys", "strength_twin", "twin_suspects", "STRENGTH_ITERATIONS", "STRENGTH_TOLERANCE"]
