@@ -174,7 +174,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
                            loc.after.n_significant_cells, loc.before.n_major_cells,
                            loc.after.n_major_cells),
         design, Recommended.for_fit(theta, ref.fitted), timing, (), warns, ref.acceptance,
-        best, out, proposal, strength_twins=tuple(scr.strength_twins))
+        best, out, proposal, strength_twins=tuple(scr.strength_twins),
+        not_twins=scr.not_twins)
     if out is None:
         return diag
     figs = (make_figures(out, loc.before, loc.after, ref.ranking, problem.channels,

@@ -255,6 +255,10 @@ def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
         for g in d.indistinguishable:
             lines.append(f"* {' vs '.join(g.effects)} (correlation {g.correlation:.2f}): "
                          f"{g.experiment}")
+    if d.not_twins:
+        lines += ["", f"Not tested as terrain-strength (φ_s) twins: {', '.join(d.not_twins)} "
+                  "— the joint torque equation error at the measured state shows a "
+                  "discrepancy (the joint-axis proposal passed), which no φ_s can produce."]
     lines += proposal_section(d.proposal)       # a term outside the library (proposal.py)
     loc = d.localization
     lines += ["", "## Where the calibrated model fails", ""]

@@ -275,6 +275,9 @@ class Diagnosis(Record):
             (φ_s) mismatch of the model file explains as well (:mod:`.strength`): not
             added; either φ_s differs from the file or an effect strengthens/weakens the
             sand like it (the data cannot tell).
+        not_twins: candidates not tested as such twins: the torque side, when the joint
+            torque equation error showed a discrepancy no φ_s can produce
+            (:func:`.strength.not_twins`).
     """
 
     data: str
@@ -297,6 +300,7 @@ class Diagnosis(Record):
     out_dir: Path | None = field(default=None, metadata=NOT_JSON)
     proposal: Proposal | None = field(default=None, metadata=OMIT_NONE)
     strength_twins: tuple[StrengthTwin, ...] = field(default=(), metadata=OMIT_EMPTY)
+    not_twins: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
 
     @property
     def added(self) -> list[str]:

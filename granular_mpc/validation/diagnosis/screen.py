@@ -345,11 +345,13 @@ class Screening(ScreeningDesign):
         indistinguishable: nearly collinear leading pairs.
         strength_twins: candidates that pass every test but are explained as well by a
             terrain-strength mismatch (not significant, :mod:`.strength`).
+        not_twins: candidates the twin test was not applied to (:func:`.strength.not_twins`).
     """
 
     ranking: tuple[CandidateStats, ...] = ()
     indistinguishable: tuple[IndistinguishablePair, ...] = ()
     strength_twins: tuple[StrengthTwin, ...] = ()
+    not_twins: tuple[str, ...] = ()
 
 
 def screening_design(problem: Problem, candidates: CandidateSet, nuisance: Sequence[Column],
@@ -404,7 +406,8 @@ def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, 
     pairs = [p for p in pairs if not gone & set(p.effects)]
     return Screening(design.builder, design.regressions, design.bounds, design.base_keys,
                      design.strength, design.strength_model, ranking=tuple(ranking),
-                     indistinguishable=tuple(pairs), strength_twins=tuple(twins))
+                     indistinguishable=tuple(pairs), strength_twins=tuple(twins),
+                     not_twins=tuple(sorted(set(not_twins) & set(cand_keys))))
 
 __all__ = ["Screening", "ScreeningDesign", "screening_design", "screen", "candidate_stats",
            "practically_large", "indistinguishable", "separating_experiment", "channel_heldout",
