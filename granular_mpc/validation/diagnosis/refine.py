@@ -276,7 +276,8 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
         reg_c = scr.builder.build(R_cur, sens_c, geo_c, b_c, keys_fixed).regression
         rest = {n: k for n, k in cand_keys.items() if n not in selected}
         out = candidate_stats(reg_c, keys_fixed, rest, candidates.columns, candidates.infos,
-                              n_boot=n_boot, seed=seed, max_effects=max_effects - len(selected))
+                              n_boot=n_boot, seed=seed, max_effects=max_effects - len(selected),
+                              not_twins=scr.not_twins)
         for r in out:
             conditional[r.effect].append(ConditionalResult(tuple(selected),
                                                            r.heldout_error_reduction,
