@@ -41,7 +41,6 @@ from dataclasses import dataclass, replace
 from typing import Mapping, Sequence
 
 from ...columns import joint_columns
-
 from ..replay.measurement import check_sensor_specs
 from ..replay.pool import ReplayPool
 from .acceptance_records import StrengthTwin
