@@ -83,8 +83,6 @@ SPEEDS = [0.1, 0.2, 0.3, 0.4, 0.5]
 
 def run_case(data: Path, effect: str | None, out: Path, seed: int,
              mismatch: str | None = None) -> dict:
-    from granular_mpc.config import parse_effect_string
-    from granular_mpc.terrain.effects_library import effect_info
     from granular_mpc.validation.diagnose import diagnose
 
     t0 = time.perf_counter()
@@ -100,12 +98,24 @@ def run_case(data: Path, effect: str | None, out: Path, seed: int,
             coef = diag.calibration.values[param]
             row.update(param=param, coef=coef, true=true, coef_err=(coef - true) / true)
         return row
+    row.update(effect_figures(diag, effect), nothing_added=not diag.added)
+    return row
+
+
+def effect_figures(diag, effect: str) -> dict:
+    """One injected effect's figures in a diagnosis: its rank, its main coefficient (the
+    injected parameter furthest from its neutral value, relative to its range) fitted and
+    true, the relative error of its magnitude, the channel whose held-out error the
+    diagnosis cut most (in units of its scatter) and that channel's held-out and replay
+    reductions."""
+    from granular_mpc.config import parse_effect_string
+    from granular_mpc.terrain.effects_library import effect_info
+
     spec = parse_effect_string(effect)
     name = spec["name"]
     info = effect_info(name)
     true_all = info.resolve_params(spec["params"])
     neutral_all = info.neutral_params()
-    # the injected magnitude: the parameter furthest from neutral (relative to its range)
     main = max(info.neutral, key=lambda p: abs(true_all[p] - neutral_all[p])
                / (info.params[p].upper - info.params[p].lower))
     true, neutral = true_all[main], neutral_all[main]
@@ -114,16 +124,14 @@ def run_case(data: Path, effect: str | None, out: Path, seed: int,
     red = {c: d for c, d in diag.heldout_reduction_by_channel.items()
            if c != "touchdown_z" or info.kind == "geometry"}
     sigma = diag.design.sigma
-    # the affected channel: largest held-out error reduction in units of its scatter
     channel = (max(red, key=lambda c: (red[c].before - red[c].after) / sigma.get(c, 1.0))
                if red else None)
     rep = diag.replay_rmse_by_channel
-    row.update(rank=entry.rank, coef=coef, true=true, param=main,
-               coef_err=(coef - true) / (true - neutral), channel=channel,
-               heldout_red=red[channel].reduction if channel else None,
-               replay_red=rep[channel].reduction if channel in rep else None,
-               nothing_added=not diag.added)
-    return row
+    return dict(rank=entry.rank, coef=coef, true=true, param=main,
+                coef_err=(coef - true) / (true - neutral), channel=channel,
+                heldout_red=red[channel].reduction if channel else None,
+                replay_red=rep[channel].reduction if channel in rep else None,
+                added_self=name in diag.added)
 
 
 def _rel(value: float, true: float) -> float:

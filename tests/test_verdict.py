@@ -161,3 +161,26 @@ def test_a_candidate_added_after_an_earlier_rejection_is_not_reported_as_rejecte
     assert ("joint_friction was reported, not added (" + worse[0]
             + ") — judged with force_sensor_bias, knee_spring added") in text
     assert "inertial_drag was added, then dropped (" + worse[0] in text
+
+
+def test_a_significant_candidate_refused_by_its_replays_is_not_no_effect():
+    """Nothing added and no major cell, but the screening found a candidate significant
+    that the acceptance refused: the verdict says the screening found structure that no
+    replay confirms (``unexplained_structure``), never "no candidate passes the tests";
+    without the refusal (or with a candidate that was not significant) it is no effect."""
+    from dataclasses import replace
+
+    tilt = replace(_ranked("terrain_slope"), added=False, refined_params=None,
+                   not_added_because=("its replays make the channels it is credited with "
+                                      "worse: grf_x +2.5 % (rise t = 1.1)",))
+    acc = Acceptance("terrain_slope", False, {}, (), tilt.not_added_because)
+    v = decide(VerdictInputs((), (tilt,), None, _empty(), acceptance=(acc,)))
+    assert v.status == "unexplained_structure" and v.added == ()
+    assert "terrain_slope passes the held-out, AICc and bootstrap tests" in v.text
+    assert "held-out error −35.0 %" in v.text and "ΔAICc -25" in v.text
+    assert "grf_x +2.5 %" in v.text                   # the reason, from rejected_sentence
+    assert "no candidate passes" not in v.text
+    for quiet in (replace(tilt, not_added_because=()), replace(tilt, significant=False)):
+        q = decide(VerdictInputs((), (quiet,), None, _empty()))
+        assert q.status == "no_significant_missing_effect"
+        assert "no candidate passes the held-out" in q.text

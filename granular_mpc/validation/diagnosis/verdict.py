@@ -195,6 +195,29 @@ def unexplained_structure(v: VerdictInputs) -> Verdict | None:
                    + " | ".join(where_summary(v.after, 4)), v.selected)
 
 
+def refused_evidence(v: VerdictInputs) -> Verdict | None:
+    """Nothing added and no major cell, but a candidate passed every screening test and
+    was refused by the acceptance: the screening found structure that no candidate's
+    replays confirm. Saying "no significant missing effect" would deny the screening's
+    own result (a surface tilt whose replays raise ``grf_x`` by 2.5 % while its held-out
+    touchdown heights fall by 24 %)."""
+    refused = [e for e in v.ranking if not e.added and e.significant and e.not_added_because]
+    if v.selected or not refused:
+        return None
+
+    def one(e: Ranked) -> str:
+        inc = e.inclusion_probability
+        return (f"{e.effect} passes the held-out, AICc and bootstrap tests (held-out error "
+                f"{error_change(e.heldout_error_reduction)}, ΔAICc {e.delta_aicc:.0f}, "
+                f"inclusion {'–' if inc is None else f'{inc:.2f}'}) but was not added")
+
+    text = ("the screening finds structure that no candidate's replays confirm: "
+            + "; ".join(one(e) for e in refused)
+            + f"; no channel × phase cell shows a systematic residual larger than "
+              f"{MAJOR_BIAS:g} × the stance-to-stance scatter")
+    return Verdict("unexplained_structure", text, v.selected)
+
+
 def no_significant_missing_effect(v: VerdictInputs) -> Verdict:
     """Nothing added and no major cell."""
     text = ("no significant missing effect: no candidate passes the held-out, AICc and "
@@ -210,7 +233,8 @@ def no_significant_missing_effect(v: VerdictInputs) -> Verdict:
 
 #: the rules, first answer wins; the last one always answers
 VERDICT_RULES: Sequence[Callable[[VerdictInputs], Verdict | None]] = (
-    partially_explained, missing_effect, unexplained_structure, no_significant_missing_effect)
+    partially_explained, missing_effect, unexplained_structure, refused_evidence,
+    no_significant_missing_effect)
 
 
 def rejected_sentence(v: VerdictInputs) -> str:
@@ -286,5 +310,6 @@ def decide(inputs: VerdictInputs) -> Verdict:
 
 __all__ = ["VerdictInputs", "Verdict", "decide", "VERDICT_RULES", "effect_sentence",
            "missing_effect", "partially_explained", "unexplained_structure",
-           "no_significant_missing_effect", "error_change", "rejected_sentence",
+           "no_significant_missing_effect", "refused_evidence", "error_change",
+           "rejected_sentence",
            "best_candidate_statement", "leftover_evidence_sentence", "LISTED_REMAINING"]
