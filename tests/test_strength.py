@@ -187,7 +187,8 @@ def test_torque_side_candidates_are_no_twins_only_with_a_joint_discrepancy(workb
     """Joint effects and sensor effects on ``tau_*`` are the torque side; they are exempt
     from the twin test only when the joint-axis proposal passed on some joint."""
     from granular_mpc.effects import Param, register_sensor_effect, registered_effects
-    from granular_mpc.validation.diagnosis.candidates import build_candidates
+    from granular_mpc.validation.diagnosis.candidates import (build_candidates,
+                                                              check_sensor_candidates)
     from granular_mpc.validation.diagnosis.problem import load_problem
     from granular_mpc.validation.diagnosis.proposal_records import JointFit, Proposal
     from granular_mpc.validation.diagnosis.strength import not_twins, torque_side
@@ -202,12 +203,18 @@ def test_torque_side_candidates_are_no_twins_only_with_a_joint_discrepancy(workb
     problem = load_problem(workbench_data("null"))
     cands = build_candidates(["joint_friction", "force_sensor_bias", "inertial_drag",
                               "_test_tau_gain"])
-    assert torque_side(cands, problem) == {"joint_friction", "_test_tau_gain"}
+    # what the sensors change is known only once they were tried on the data
+    assert torque_side(cands) == {"joint_friction"}
+    cands = check_sensor_candidates(cands, problem.windows[0], problem.joint_names)
+    assert cands.sensor_outputs["force_sensor_bias"] <= {"grf_x", "grf_y", "grf_z"}
+    assert cands.replayed_sensors == {"_test_tau_gain"}
+    assert torque_side(cands) == {"joint_friction", "_test_tau_gain"}
+    assert torque_side(cands.without(["_test_tau_gain"])) == {"joint_friction"}
 
     def proposal(passed: bool) -> Proposal:
         return Proposal("p", "", (), (), 0, 0,
                         joint_fits=(JointFit("left_knee", 0.8, 0.8, 0.5, 0.1, passed),))
 
-    assert not_twins(cands, problem, None) == frozenset()
-    assert not_twins(cands, problem, proposal(False)) == frozenset()
-    assert not_twins(cands, problem, proposal(True)) == {"joint_friction", "_test_tau_gain"}
+    assert not_twins(cands, None) == frozenset()
+    assert not_twins(cands, proposal(False)) == frozenset()
+    assert not_twins(cands, proposal(True)) == {"joint_friction", "_test_tau_gain"}

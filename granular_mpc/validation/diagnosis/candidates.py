@@ -85,14 +85,26 @@ class CandidateSet:
     Attributes:
         infos: effect name → its registry entry (only effects that can be switched off).
         columns: effect name → its magnitude columns.
-        replayed_sensors: sensor effects that change what a replay reads (``q_*``,
-            ``dq_*``, ``tau_*``, ``base_*``): their sensitivities need replays, like the
-            other kinds (:func:`check_sensor_candidates` sets them).
+        sensor_outputs: sensor effect → the data columns it changes at its default
+            parameters, tried once on one stance window (:func:`check_sensor_candidates`
+            sets them; empty before).
     """
 
     infos: Mapping[str, EffectInfo]
     columns: Mapping[str, tuple[Column, ...]]
-    replayed_sensors: frozenset = field(default_factory=frozenset)
+    sensor_outputs: Mapping[str, frozenset[str]] = field(default_factory=dict)
+
+    @property
+    def replayed_sensors(self) -> frozenset[str]:
+        """The sensor effects that change what a replay reads (``q_*``, ``dq_*``,
+        ``tau_*``, ``base_*``): their sensitivities need replays, like the other kinds."""
+        return frozenset(n for n, cols in self.sensor_outputs.items() if changes_replay(cols))
+
+    def sensors_changing(self, prefix: str) -> frozenset[str]:
+        """The sensor effects that change some column named ``prefix…`` (``"tau_"``: the
+        measured joint torques)."""
+        return frozenset(n for n, cols in self.sensor_outputs.items()
+                         if any(c.startswith(prefix) for c in cols))
 
     def needs_replay(self, name: str) -> bool:
         """Whether the candidate's sensitivity needs replays (every kind but a sensor
@@ -104,7 +116,8 @@ class CandidateSet:
         drop = set(names)
         return replace(self, infos={n: i for n, i in self.infos.items() if n not in drop},
                        columns={n: c for n, c in self.columns.items() if n not in drop},
-                       replayed_sensors=frozenset(self.replayed_sensors - drop))
+                       sensor_outputs={n: c for n, c in self.sensor_outputs.items()
+                                       if n not in drop})
 
     @property
     def keys(self) -> dict[str, list[str]]:
@@ -141,7 +154,9 @@ def build_candidates(names: Sequence[str] | None = None) -> CandidateSet:
 def check_sensor_candidates(candidates: CandidateSet, window: StanceWindow,
                             joint_names: Sequence[str]) -> CandidateSet:
     """Try every sensor candidate on one window's columns (every column of the data
-    format) before any replay, and mark those that change a replay's inputs.
+    format) before any replay, and keep the columns each changes
+    (:attr:`CandidateSet.sensor_outputs`: which change a replay's inputs, which the
+    measured torques).
 
     Raises:
         ConfigError: a sensor effect reads a column the data do not have (the error names
@@ -149,8 +164,7 @@ def check_sensor_candidates(candidates: CandidateSet, window: StanceWindow,
     """
     specs = [(i, i.resolve_params({})) for i in candidates.infos.values() if i.kind == "sensor"]
     changed = check_sensor_specs(specs, window, joint_names)
-    return replace(candidates, replayed_sensors=frozenset(
-        n for n, cols in changed.items() if changes_replay(cols)))
+    return replace(candidates, sensor_outputs={n: frozenset(c) for n, c in changed.items()})
 
 
 def drop_uninvertible_sensor_candidates(candidates: CandidateSet, window: StanceWindow,

@@ -134,7 +134,7 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
         timing["design"] = _time.perf_counter() - t0
         t0 = _time.perf_counter()
         scr = screen(problem, cands, sd, n_boot=n_boot, seed=seed, max_effects=max_effects,
-                     not_twins=not_twins(cands, problem, proposal))
+                     not_twins=not_twins(cands, proposal))
         timing["rank"] = _time.perf_counter() - t0
         t0 = _time.perf_counter()
         ref = refine(problem, cands, cal, res, scr, pool, n_boot=n_boot, seed=seed,

@@ -40,8 +40,6 @@ import math
 from dataclasses import dataclass, replace
 from typing import Mapping, Sequence
 
-from ...columns import joint_columns
-from ..replay.measurement import check_sensor_specs
 from ..replay.pool import ReplayPool
 from .acceptance_records import StrengthTwin
 from .calibration import STRENGTH, CalibrationStage, nuisance_columns
@@ -267,30 +265,22 @@ def strength_twin(reg: Regression, base_keys: Sequence[str], effect: str,
                         float(1.0 - cv_s / cv0) if cv0 > 0 else 0.0, fitted, filed)
 
 
-def torque_side(candidates: CandidateSet, problem: Problem) -> frozenset[str]:
+def torque_side(candidates: CandidateSet) -> frozenset[str]:
     """The candidates acting on the joint side of the equations of motion: joint effects,
-    and sensor effects that change a ``tau_*`` column (tried at their default parameters
-    on the first stance window)."""
-    infos = candidates.infos
-    out = {n for n, info in infos.items() if info.kind == "joint"}
-    sensors = [(info, info.resolve_params({})) for info in infos.values()
-               if info.kind == "sensor"]
-    if sensors:
-        tau = set(joint_columns(problem.joint_names, "tau"))
-        changed = check_sensor_specs(sensors, problem.windows[0], problem.joint_names)
-        out |= {n for n, cols in changed.items() if tau & set(cols)}
-    return frozenset(out)
+    and sensor effects that change a ``tau_*`` column (at their default parameters,
+    :attr:`.candidates.CandidateSet.sensor_outputs`)."""
+    joints = {n for n, info in candidates.infos.items() if info.kind == "joint"}
+    return frozenset(joints | candidates.sensors_changing("tau_"))
 
 
-def not_twins(candidates: CandidateSet, problem: Problem,
-              proposal: Proposal | None) -> frozenset[str]:
+def not_twins(candidates: CandidateSet, proposal: Proposal | None) -> frozenset[str]:
     """The candidates no strength-twin test applies to: the torque-side ones
     (:func:`torque_side`) when the joint-torque equation error passed the joint-axis
     proposal's evidence rule on some joint (``proposal.joint_fits``) — a discrepancy a
     terrain-strength mismatch cannot produce (module docstring). Empty otherwise."""
     if proposal is None or not any(f.proposed for f in proposal.joint_fits):
         return frozenset()
-    return torque_side(candidates, problem)
+    return torque_side(candidates)
 
 
 __all__ = ["torque_side", "not_twins", "StrengthTwin", "StrengthModel", "add_strength_sensitivity", "strength_model",
