@@ -4,7 +4,7 @@ they share with the rest of the diagnosis (``diagnosis.json`` → ``acceptance``
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Mapping
+from typing import Mapping, Sequence
 
 from .records import OMIT_EMPTY, Record
 
@@ -126,4 +126,59 @@ def _signed(reduction: float) -> str:
     return f"{'−' if reduction >= 0 else '+'}{abs(100.0 * reduction):.1f} %"
 
 
-__all__ = ["ChannelChange", "CoefficientCheck", "Acceptance", "StrengthTwin"]
+#: the stages of :data:`.force_leftover.STAGES` in words
+FORCE_STAGE_WORDS = {"library": "the feature library", "law": "a velocity law",
+                     "per_foot": "one foot's share of the law"}
+
+
+@dataclass(frozen=True)
+class ForceLeftover(Record):
+    """One force axis whose equation error while the sole sinks the additions leave
+    unexplained (:mod:`.force_leftover`).
+
+    Attributes:
+        axis: ``z`` (vertical) or ``h`` (forward, along the heading).
+        explained_before: the most any stage explains beyond ζ on the calibrated model
+            [N, foot level].
+        explained_after: what the stage explains with the added terrain-force effects'
+            columns free beside ζ [N].
+        threshold: the stage's least explained force on the axis [N].
+        effects: the added effects the test saw (terrain forces as columns; joint effects
+            and torque sensors produce no foot force at the measured state).
+        n_samples: sinking samples.
+        stage: the proposal's stage that explains it (``library``, ``law``, ``per_foot``:
+            :data:`.force_leftover.STAGES`).
+    """
+
+    axis: str
+    explained_before: float
+    explained_after: float
+    threshold: float
+    effects: tuple[str, ...]
+    n_samples: int
+    stage: str = "library"
+
+    def words(self) -> str:
+        """``a vertical force of 9.1 N RMS (9.5 N on the calibrated model, data without a
+        missing foot force < 5 N; the feature library)``."""
+        axis = "vertical" if self.axis == "z" else "forward"
+        return (f"a {axis} force of {self.explained_after:.1f} N RMS "
+                f"({self.explained_before:.1f} N on the calibrated model, data without a "
+                f"missing foot force < {self.threshold:g} N; "
+                f"{FORCE_STAGE_WORDS[self.stage]})")
+
+
+def force_leftover_sentence(items: Sequence[ForceLeftover]) -> str:
+    """The axes the additions leave unexplained, in one sentence ("" for none)."""
+    if not items:
+        return ""
+    effects = items[0].effects
+    by = ", ".join(effects) if effects else "the additions"
+    return (f"the foot force while the sole sinks is not what {by} produce"
+            f"{'s' if len(effects) == 1 else ''}: the foot-force equation error beside "
+            f"{'it' if len(effects) == 1 else 'them'} still holds "
+            + " and ".join(f.words() for f in items) + " (docs/validation.md §3.7)")
+
+
+__all__ = ["ForceLeftover", "force_leftover_sentence", "FORCE_STAGE_WORDS", "ChannelChange",
+           "CoefficientCheck", "Acceptance", "StrengthTwin"]

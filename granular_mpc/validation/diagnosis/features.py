@@ -145,9 +145,10 @@ class ForceSamples:
 def sample_columns(windows: Sequence[StanceWindow]) -> dict[str, np.ndarray]:
     """The measured state on the sinking samples of every window (the calibration's
     samples): depth, pitch, sole velocity (W z; forward and lateral along the heading),
-    vertical acceleration, time in stance, forward and vertical force, trial, window, foot."""
+    vertical acceleration, time in stance, forward and vertical force, trial, window, foot;
+    the heading (W x, y), the rise from the deepest point so far and the sink rate."""
     keys = ("depth", "pitch", "v_h", "v_l", "v_z", "a_z", "t_stance", "f_h", "f_z", "window",
-            "trial", "foot")
+            "trial", "foot", "heading_x", "heading_y", "rise", "depth_rate")
     cols: dict[str, list] = {k: [] for k in keys}
     for w in windows:
         f = w.features
@@ -168,6 +169,10 @@ def sample_columns(windows: Sequence[StanceWindow]) -> dict[str, np.ndarray]:
         cols["window"].append(np.full(n, w.index))
         cols["trial"].append(np.full(n, w.trial, dtype=object))
         cols["foot"].append(np.full(n, w.foot))
+        cols["heading_x"].append(f["heading_x"][m])
+        cols["heading_y"].append(f["heading_y"][m])
+        cols["rise"].append(f["rise_from_deepest"][m])
+        cols["depth_rate"].append(f["sink_velocity"][m])
     return {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in cols.items()}
 
 

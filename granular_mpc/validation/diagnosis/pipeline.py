@@ -25,6 +25,7 @@ from .candidates import (build_candidates, check_sensor_candidates, drop_dead_ca
 from .coverage import (assess_candidates, calibration_text, can_calibrate,
                        drop_unreadable_sensor_candidates, fixed_calibration, measured_problem,
                        write_coverage)
+from .force_leftover import ForceLeftover, force_leftover, inapplicable
 from .localise import localise_models, where_summary
 from .problem import load_problem
 from .proposal import pointed_proposal, propose_terms
@@ -38,6 +39,21 @@ from .screen import screen, screening_design
 from .strength import add_strength_sensitivity, not_twins, strength_model, twin_suspects
 from .untested import with_untested
 from .verdict import VerdictInputs, best_candidate_statement, decide
+
+
+def added_force_leftover(problem, cands, theta, selected: Sequence[str], fitted, *,
+                         seed: int) -> tuple[ForceLeftover, ...]:
+    """:func:`.force_leftover.force_leftover` of the added effects at their fitted values;
+    () when nothing was added or an addition changes what the equation error reads."""
+    added = [cands.infos[n] for n in selected]
+    if not added or inapplicable(added, cands.sensor_outputs):
+        return ()
+    values = []
+    for info in added:
+        p = info.neutral_params()
+        p.update(fitted.get(info.name, {}))
+        values.append((info, p))
+    return force_leftover(problem, theta, values, seed=seed)
 
 
 def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
@@ -147,9 +163,13 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
                           ref.final_preds if ref.selected else None, n_fitted, seed=seed)
     timing["localize"] = _time.perf_counter() - t0
     theta = dict(ref.theta) if ref.selected else dict(loc.theta_linear)
+    t0 = _time.perf_counter()
+    force_left = added_force_leftover(problem, cands, cal.theta, ref.selected, ref.fitted,
+                                      seed=seed) if proposal is not None else ()
+    timing["force_leftover"] = _time.perf_counter() - t0
     vin = VerdictInputs(ref.selected, ref.ranking, ref.refined_heldout, loc.after, loc.before,
                         ref.acceptance, scr.indistinguishable, coverage.indistinguishable,
-                        scr.strength_twins)
+                        scr.strength_twins, force_left)
     verdict = decide(vin)
     best = best_candidate_statement(vin)
     verdict, proposal = pointed_proposal(verdict, best, proposal, out, str(data_dir))
@@ -175,7 +195,7 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
                            loc.after.n_major_cells),
         design, Recommended.for_fit(theta, ref.fitted), timing, (), warns, ref.acceptance,
         best, out, proposal, strength_twins=tuple(scr.strength_twins),
-        not_twins=scr.not_twins)
+        not_twins=scr.not_twins, force_left=force_left)
     if out is None:
         return diag
     figs = (make_figures(out, loc.before, loc.after, ref.ranking, problem.channels,

@@ -12,6 +12,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..prepare import channel_unit
+from .acceptance_records import force_leftover_sentence
 from .coverage import coverage_section
 from .joint_proposal import joint_report_lines
 from .localization_records import Localization
@@ -267,6 +268,8 @@ def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
     if v.added:
         lines += ["", "## After adding " + ", ".join(v.added), ""]
         lines += [f"* {s}" for s in loc.unexplained_where] or ["* no structure left"]
+        if d.force_left:
+            lines.append(f"* {force_leftover_sentence(d.force_left)}")
         red = d.heldout_reduction_by_channel
         if red:
             lines += ["", "| channel | held-out RMS before | after | reduction |", "|---|---|---|---|"]

@@ -14,7 +14,8 @@ from typing import Any, Mapping
 
 from ...output import json_safe
 from ..calibrate import Calibration
-from .acceptance_records import Acceptance, ChannelChange, CoefficientCheck, StrengthTwin
+from .acceptance_records import (Acceptance, ChannelChange, CoefficientCheck, ForceLeftover,
+                                 StrengthTwin)
 from .localization_records import Localization
 from .proposal_records import Proposal
 from .ranking_records import Ranked
@@ -278,6 +279,8 @@ class Diagnosis(Record):
         not_twins: candidates not tested as such twins: the torque side, when the joint
             torque equation error showed a discrepancy no φ_s can produce
             (:func:`.strength.not_twins`).
+        force_left: force axes whose equation error while the sole sinks the additions
+            leave unexplained (:mod:`.force_leftover`).
     """
 
     data: str
@@ -301,6 +304,7 @@ class Diagnosis(Record):
     proposal: Proposal | None = field(default=None, metadata=OMIT_NONE)
     strength_twins: tuple[StrengthTwin, ...] = field(default=(), metadata=OMIT_EMPTY)
     not_twins: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
+    force_left: tuple[ForceLeftover, ...] = field(default=(), metadata=OMIT_EMPTY)
 
     @property
     def added(self) -> list[str]:

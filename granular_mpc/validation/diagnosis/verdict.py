@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 from typing import Callable, Sequence
 
 from .acceptance import cell_words, remaining_cells
-from .acceptance_records import Acceptance
+from .acceptance_records import Acceptance, ForceLeftover, force_leftover_sentence
 from .localise import where_summary
 from .localization_records import Localization
 from .ranking_records import Ranked
@@ -41,6 +41,8 @@ class VerdictInputs:
             the second is ambiguous.
         strength_twins: candidates not significant because a terrain-strength (φ_s)
             mismatch explains their evidence as well (:mod:`.strength`).
+        force_left: force axes whose equation error while the sole sinks the additions
+            leave unexplained (:mod:`.force_leftover`).
     """
 
     selected: tuple[str, ...]
@@ -52,6 +54,7 @@ class VerdictInputs:
     indistinguishable: tuple[IndistinguishablePair, ...] = ()
     channel_twins: tuple[tuple[str, str], ...] = ()
     strength_twins: tuple[StrengthTwin, ...] = ()
+    force_left: tuple[ForceLeftover, ...] = ()
 
     def twins_of(self, name: str) -> tuple[str, ...]:
         """The candidates the measured channels cannot tell from an addition of ``name``."""
@@ -137,27 +140,28 @@ def partially_explained(v: VerdictInputs) -> Verdict | None:
     that flagged the missing effect are not all gone, or the final model has major cells
     of its own (structure the additions did not explain), or the screening still finds a
     candidate that passes every test on the final model's residual and could not be added
-    (:attr:`VerdictInputs.leftover_evidence`: structure no candidate explains). Say what
-    was added and what remains where."""
+    (:attr:`VerdictInputs.leftover_evidence`: structure no candidate explains), or the
+    foot force while the sole sinks is not what the additions produce
+    (:attr:`VerdictInputs.force_left`). Say what was added and what remains where."""
     left = v.remaining
-    if not v.selected or not (left or v.left_after or v.leftover_evidence):
+    if not v.selected or not (left or v.left_after or v.leftover_evidence or v.force_left):
         return None
-    base = missing_effect(v).text.split(". After adding")[0]
+    parts = [missing_effect(v).text.split(". After adding")[0]]
     if left:
-        text = (base + f". The structure that flagged it is only partly explained: "
-                f"{len(left)} of the calibrated model's major cells remain, e.g. "
-                + "; ".join(cell_words(c) for c in left[:LISTED_REMAINING]))
+        parts.append(f"The structure that flagged it is only partly explained: "
+                     f"{len(left)} of the calibrated model's major cells remain, e.g. "
+                     + "; ".join(cell_words(c) for c in left[:LISTED_REMAINING]))
     elif v.left_after:
         new = v.left_after
-        text = (base + f". Structure is left that the addition does not explain: {len(new)} "
-                "channel × phase cells of the final model are major, e.g. "
-                + "; ".join(cell_words(c) for c in new[:LISTED_REMAINING]))
-    else:
-        return Verdict("partially_explained", base + ". " + leftover_evidence_sentence(v),
-                       v.selected)
+        parts.append(f"Structure is left that the addition does not explain: {len(new)} "
+                     "channel × phase cells of the final model are major, e.g. "
+                     + "; ".join(cell_words(c) for c in new[:LISTED_REMAINING]))
     if v.leftover_evidence:
-        text += ". " + leftover_evidence_sentence(v, where=False)
-    return Verdict("partially_explained", text, v.selected)
+        parts.append(leftover_evidence_sentence(v, where=not (left or v.left_after)))
+    if v.force_left:
+        text = force_leftover_sentence(v.force_left)
+        parts.append(text[0].upper() + text[1:])
+    return Verdict("partially_explained", ". ".join(parts), v.selected)
 
 
 def leftover_evidence_sentence(v: VerdictInputs, *, where: bool = True) -> str:
@@ -270,6 +274,8 @@ def best_candidate_statement(v: VerdictInputs) -> str:
                        "candidate explains (" + ", ".join(
                            f"{e.effect} passes every test on the final residual but was not "
                            "added" for e in v.leftover_evidence) + ")")
+        if v.force_left:
+            why.append(force_leftover_sentence(v.force_left))
         if twins:
             why.append(f"the data cannot tell it from {', '.join(twins)}")
         if v.twins_of(name):
@@ -312,4 +318,5 @@ __all__ = ["VerdictInputs", "Verdict", "decide", "VERDICT_RULES", "effect_senten
            "missing_effect", "partially_explained", "unexplained_structure",
            "no_significant_missing_effect", "refused_evidence", "error_change",
            "rejected_sentence",
-           "best_candidate_statement", "leftover_evidence_sentence", "LISTED_REMAINING"]
+           "best_candidate_statement", "leftover_evidence_sentence",
+           "LISTED_REMAINING"]
