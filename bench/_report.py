@@ -17,3 +17,14 @@ def emit(figures: dict, json_path: str | None = None, units: dict | None = None)
     if json_path:
         with open(json_path, "w", encoding="utf-8") as fh:
             json.dump(figures, fh, indent=2)
+
+
+def emit_study(figures: dict, rows: list, json_path=None) -> None:
+    """A study's figures as ``name: value`` lines (3 significant digits) and, with
+    ``json_path``, ``{"figures": …, "rows": …}`` as JSON (rows as written, other values as
+    text)."""
+    for k, v in figures.items():
+        print(f"{k}: {v:.3g}" if isinstance(v, float) else f"{k}: {v}")
+    if json_path:
+        with open(json_path, "w", encoding="utf-8") as fh:
+            json.dump({"figures": figures, "rows": rows}, fh, indent=1, default=str)

@@ -67,6 +67,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))   # the helper below, when imported
 
+from _report import emit_study  # noqa: E402
 from recovery_signal import SIGNAL_THRESHOLD, case_signal  # noqa: E402
 
 DEFAULT_EFFECTS = [
@@ -429,12 +430,7 @@ def main() -> None:
                   f" replay {'-' if row['replay_red'] is None else format(row['replay_red'], '.0%')}"
                   f"  signal {'-' if row['signal'] is None else format(row['signal'], '.1f')}"
                   f"  {row['status']}  [{row['diagnose_s']:.0f} s]", flush=True)
-    figures = study_figures(rows)
-    for k, v in figures.items():
-        print(f"{k}: {v:.3g}" if isinstance(v, float) else f"{k}: {v}")
-    if args.json:
-        args.json.write_text(json.dumps({"figures": figures, "rows": rows}, indent=1,
-                                        default=str), encoding="utf-8")
+    emit_study(study_figures(rows), rows, args.json)
     tmp.cleanup()
 
 

@@ -24,7 +24,6 @@ unloading), at the magnitudes of ``recovery.DEFAULT_EFFECTS``.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import time
@@ -32,6 +31,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))   # the helpers below, when imported
 
+from _report import emit_study  # noqa: E402
 from recovery import SPEEDS, effect_figures  # noqa: E402
 
 DEFAULT_PAIRS = [
@@ -138,12 +138,7 @@ def main() -> None:
                       f"{m['coef']:.4g} ({m['coef_err']:+.0%})" for m in r["members"])
                   + f"  [{r['diagnose_s']:.0f} s]", flush=True)
     print(pair_table(rows))
-    figures = pair_figures(rows)
-    for k, v in figures.items():
-        print(f"{k}: {v:.3g}" if isinstance(v, float) else f"{k}: {v}")
-    if args.json:
-        args.json.write_text(json.dumps({"figures": figures, "rows": rows}, indent=1,
-                                        default=str), encoding="utf-8")
+    emit_study(pair_figures(rows), rows, args.json)
     tmp.cleanup()
 
 
