@@ -133,39 +133,38 @@ FORCE_STAGE_WORDS = {"library": "the feature library", "law": "a velocity law",
 
 @dataclass(frozen=True)
 class ForceLeftover(Record):
-    """One force axis whose equation error while the sole sinks the additions leave
-    unexplained (:mod:`.force_leftover`).
+    """One force axis whose equation error while the sole sinks holds a missing force the
+    additions do not produce (:mod:`.force_leftover`).
 
     Attributes:
         axis: ``z`` (vertical) or ``h`` (forward, along the heading).
-        explained_before: the most any stage explains beyond ζ on the calibrated model
-            [N, foot level].
-        explained_after: what the stage explains with the added terrain-force effects'
-            columns free beside ζ [N].
-        threshold: the stage's least explained force on the axis [N].
-        effects: the added effects the test saw (terrain forces as columns; joint effects
-            and torque sensors produce no foot force at the measured state).
+        explained: what the proposal's stage explains of it beyond ζ on the calibrated
+            model [N RMS, foot level].
+        footprint: the added effects' combined force on the same samples [N RMS, both
+            axes].
+        threshold: the stage's least explained force on the axis (null data) [N].
+        effects: the added effects (terrain forces evaluated; joint effects and torque
+            sensors produce no foot force at the measured state).
         n_samples: sinking samples.
         stage: the proposal's stage that explains it (``library``, ``law``, ``per_foot``:
             :data:`.force_leftover.STAGES`).
     """
 
     axis: str
-    explained_before: float
-    explained_after: float
+    explained: float
+    footprint: float
     threshold: float
     effects: tuple[str, ...]
     n_samples: int
     stage: str = "library"
 
     def words(self) -> str:
-        """``a vertical force of 9.1 N RMS (9.5 N on the calibrated model, data without a
-        missing foot force < 5 N; the feature library)``."""
+        """``a vertical force of 9.5 N RMS (the feature library; data without a missing
+        foot force < 5 N)``."""
         axis = "vertical" if self.axis == "z" else "forward"
-        return (f"a {axis} force of {self.explained_after:.1f} N RMS "
-                f"({self.explained_before:.1f} N on the calibrated model, data without a "
-                f"missing foot force < {self.threshold:g} N; "
-                f"{FORCE_STAGE_WORDS[self.stage]})")
+        return (f"a {axis} force of {self.explained:.1f} N RMS "
+                f"({FORCE_STAGE_WORDS[self.stage]}; data without a missing foot force "
+                f"< {self.threshold:g} N)")
 
 
 def force_leftover_sentence(items: Sequence[ForceLeftover]) -> str:
@@ -174,10 +173,12 @@ def force_leftover_sentence(items: Sequence[ForceLeftover]) -> str:
         return ""
     effects = items[0].effects
     by = ", ".join(effects) if effects else "the additions"
+    one = len(effects) == 1
     return (f"the foot force while the sole sinks is not what {by} produce"
-            f"{'s' if len(effects) == 1 else ''}: the foot-force equation error beside "
-            f"{'it' if len(effects) == 1 else 'them'} still holds "
-            + " and ".join(f.words() for f in items) + " (docs/validation.md §3.7)")
+            f"{'s' if one else ''}: the foot-force equation error on those samples holds "
+            + " and ".join(f.words() for f in items)
+            + f", {'it produces' if one else 'they produce'} {items[0].footprint:.1f} N RMS "
+            "there (docs/validation.md §3.7)")
 
 
 __all__ = ["ForceLeftover", "force_leftover_sentence", "FORCE_STAGE_WORDS", "ChannelChange",

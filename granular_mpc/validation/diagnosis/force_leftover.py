@@ -1,19 +1,22 @@
-"""Structure left in the foot-force equation error after the additions
-(``docs/validation.md`` §3.7, "The force the foot meets while it sinks").
+"""A missing foot force the additions do not produce (``docs/validation.md`` §3.7, "The
+force the foot meets while it sinks").
 
 The replays judge an addition by the channels it moves, and a term can pass them as a
 proxy: a rebound of the sand while the sole rises (``elastic_unloading``) stiffens the
-stance much as a harder layer below 20 mm does, its replays improve every credited channel
-and the localised structure goes — while the force the foot meets *while it sinks* is not
-one it produces (it acts only once the sole has risen from its deepest point). The
-foot-force equation error at the measured state (§3.6: measured force − the calibrated
-closed-form law at the measured depth, pitch and direction of motion, ζ free) shows that
-force directly, free of the replay's drift. After the additions it is asked again, with
-the added terrain-force effects' own force at the measured state as free columns beside
-ζ: if the feature library of §3.6 still explains at least
-:data:`~.proposal.MIN_EXPLAINED_FORCE` of it on an axis — the threshold of the proposal's
-evidence rule, above what data without a missing foot force explain — the additions have
-not explained the foot force, whatever the replays say, and the verdict says so.
+stance much as a harder layer below 20 mm does; its replays improve every credited channel
+and the localised structure goes. The foot-force equation error (§3.6: measured foot force
+− the calibrated closed-form law at the measured depth, pitch and direction of motion, ζ
+free) is taken at the measured state, on the samples where the sole sinks: when a stage of
+the proposal explains at least its threshold there (the thresholds of the proposal's
+evidence rule, above what data without a missing foot force explain), the foot meets a
+force the model lacks while it sinks. An addition that produces (almost) no force on
+those samples — less than :data:`FOOTPRINT_SHARE` of the force the stage explains, both
+axes together — cannot be that force, whatever the replays say; the verdict says so.
+
+(What the equation error holds is not the missing force alone: a force missing on one axis
+leaves structure on both, and the true term, given as a free column beside ζ, took away
+little of it on the benchmark's hard-layer and sole-Coulomb data — so the test asks whether
+the additions act at all where the force is missing, not whether they fit it.)
 
 The added effects are evaluated on each sinking sample as the contact law evaluates them on
 one of the foot's patches, from the foot-level measured state: the patch's share of the
@@ -22,15 +25,14 @@ while the sole sinks), the sole arc's submerged horizontal area at the measured 
 (pitch ignored), the velocity from the measured forward, lateral and vertical components,
 the vertical acceleration only, the deepest depth so far from the measured rise, and the
 touchdown point under the sole (``intrusion`` = (0, 0, depth)); the foot's force is the
-patch force times the number of patches. Each effect's column has a free scale, so only
-its shape over the samples matters. A term that changes what the equation error reads — a
-sensor effect on the foot force or on the kinematics, or a geometry term (the surface the
-depth is measured from) — makes the test inapplicable, and it is skipped.
+patch force times the number of patches. Joint effects and torque sensors produce no foot
+force. A term that changes what the equation error reads — a sensor effect on the foot
+force or on the kinematics, or a geometry term (the surface the depth is measured from) —
+makes the test inapplicable, and it is skipped.
 """
 
 from __future__ import annotations
 
-import math
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -50,6 +52,15 @@ from .sparse import sparse_fit
 STAGES = {"library": (MIN_EXPLAINED_FORCE, None, False),
           "law": (MIN_LAW_FORCE, LAW_FEATURES, True),
           "per_foot": (MIN_LAW_FORCE, PER_FOOT_FEATURES, False)}
+#: the additions explain a missing force on the sinking samples only if they produce there
+#: at least this share of it (RMS over the samples, both axes together). Chosen on seed 1 of
+#: the out-of-library benchmark (session 28), on the cases where a stage explains at least
+#: its threshold: the true terms (the user's, or a proposal fed back) produce 0.77–1.79
+#: times the force the stage explains (quadratic drag 0.77 and 0.91, the rest ≥ 1.13), the
+#: proxies 0–0.19 (elastic unloading on the hard layer 0.08, cohesion on vertical damping
+#: 0.04–0.19, joint friction 0); ½ lies between. Held out, seeds 2–3: true terms
+#: 0.69–3.07, proxies 0–0.11 (docs/validation.md §3.7)
+FOOTPRINT_SHARE = 0.5
 #: data columns whose change by a sensor effect changes what the equation error reads
 #: (the foot force, and the kinematics the depth, pitch and velocity come from)
 READ_BY_THE_EQUATION = ("grf_", "q_", "dq_", "base_", "intrusion_")
@@ -138,10 +149,11 @@ def effect_force_columns(effects: Sequence[tuple[EffectInfo, Mapping[str, float]
 def force_leftover(problem: Problem, theta: Mapping[str, float],
                    added: Sequence[tuple[EffectInfo, Mapping[str, float]]], *,
                    seed: int = 0) -> tuple[ForceLeftover, ...]:
-    """The force axes on which the feature library still explains ≥
-    :data:`~.proposal.MIN_EXPLAINED_FORCE` of the equation error with the added effects
-    (the module docstring); () when fewer than :data:`~.proposal.MIN_SAMPLES` sinking
-    samples. The caller leaves out the effects :func:`inapplicable` names.
+    """The force axes whose equation error holds a missing force (a stage of the proposal
+    explains at least its threshold) that the added effects do not produce: their
+    combined force on the sinking samples is less than :data:`FOOTPRINT_SHARE` of it (the
+    module docstring); () when fewer than :data:`~.proposal.MIN_SAMPLES` sinking samples.
+    The caller leaves out the effects :func:`inapplicable` names.
 
     Args:
         problem: the diagnosis problem; theta: the calibrated parameters (ζ).
@@ -157,26 +169,37 @@ def force_leftover(problem: Problem, theta: Mapping[str, float],
     cols = sample_columns(problem.windows)
     foot = biped.config.foot
     forces = [(i, v) for i, v in added if i.kind == "terrain_force"]
-    dt = 1.0 / float(problem.sample_rate_hz)
-    cfg = terrain.config
     cols_f = effect_force_columns(
         forces, cols, cols["f_h"] - fs.target["h"], cols["f_z"] - fs.target["z"],
         n_slices=n_slices, radius=foot.radius, chord=foot.chord, width=foot.width,
-        density=float(cfg.density), dt=dt)
+        density=float(terrain.config.density), dt=1.0 / float(problem.sample_rate_hz))
+    total = {ax: sum((c[ax] for c in cols_f.values()), np.zeros(fs.n)) for ax in AXES}
+    footprint = float(np.sqrt(np.mean(total["h"] ** 2 + total["z"] ** 2)))
     names = tuple(i.name for i, _ in added if i.kind in ("terrain_force", "joint", "sensor"))
+    explained = {ax: {s: explained_by(fs, ax, s, fs.nuisance[ax][:, None], seed)
+                      for s in STAGES} for ax in AXES}
+    return unproduced(explained, footprint, names, fs.n)
+
+
+def unproduced(explained: Mapping[str, Mapping[str, float]], footprint: float,
+               effects: tuple[str, ...], n_samples: int) -> tuple[ForceLeftover, ...]:
+    """The decision of :func:`force_leftover`: per axis, the stage that explains most
+    relative to its threshold, if any reaches it, and the additions' ``footprint`` [N RMS]
+    below :data:`FOOTPRINT_SHARE` of what it explains.
+
+    Args:
+        explained: axis → stage → force it explains beyond ζ [N RMS].
+        footprint: the additions' force on the same samples [N RMS].
+        effects, n_samples: recorded in each :class:`ForceLeftover`.
+    """
     out = []
-    for ax in AXES:
-        base = fs.nuisance[ax][:, None]
-        extra = [c[ax] for c in cols_f.values() if np.any(np.abs(c[ax]) > 1e-9)]
-        with_effects = np.column_stack([base, *extra]) if extra else base
-        stages = [(s, explained_by(fs, ax, s, base, seed), explained_by(fs, ax, s, with_effects,
-                                                                         seed))
-                  for s in STAGES]
-        left = [(s, e0, e1) for s, e0, e1 in stages if e1 >= STAGES[s][0][ax]]
-        if left:
-            s, _, e1 = max(left, key=lambda t: t[2] / STAGES[t[0]][0][ax])
-            e0 = max(t[1] for t in stages)
-            out.append(ForceLeftover(ax, e0, e1, STAGES[s][0][ax], names, fs.n, s))
+    for ax, by_stage in explained.items():
+        found = [(s, e) for s, e in by_stage.items() if e >= STAGES[s][0][ax]]
+        if not found:
+            continue
+        s, e = max(found, key=lambda t: t[1] / STAGES[t[0]][0][ax])
+        if footprint < FOOTPRINT_SHARE * e:
+            out.append(ForceLeftover(ax, e, footprint, STAGES[s][0][ax], effects, n_samples, s))
     return tuple(out)
 
 
@@ -196,5 +219,5 @@ def explained_by(fs: ForceSamples, axis: str, stage: str, nuisance: np.ndarray,
     return explained_rms(fit.rmse_before, fit.rmse_after)
 
 
-__all__ = ["ForceLeftover", "force_leftover", "explained_by", "STAGES", "effect_force_columns", "inapplicable",
+__all__ = ["ForceLeftover", "force_leftover", "unproduced", "explained_by", "STAGES", "FOOTPRINT_SHARE", "effect_force_columns", "inapplicable",
            "submerged_area", "READ_BY_THE_EQUATION"]
