@@ -16,7 +16,7 @@ from granular_mpc.effects import effect_info
 from granular_mpc.validation.diagnosis import ParamEstimate, Ranked
 from granular_mpc.validation.diagnosis.acceptance_records import ForceLeftover
 from granular_mpc.validation.diagnosis.features import FEATURES, ForceSamples, feature_names
-from granular_mpc.validation.diagnosis.force_leftover import (FOOTPRINT_SHARE,
+from granular_mpc.validation.diagnosis.force_leftover import (EVIDENCE_MARGIN, FOOTPRINT_SHARE,
                                                               effect_force_columns,
                                                               explained_by, force_leftover,
                                                               inapplicable, submerged_area,
@@ -110,19 +110,22 @@ def test_a_missing_damping_is_explained_by_the_law_beside_zeta():
 
 
 def test_a_missing_force_is_left_when_the_additions_do_not_act_where_it_is():
-    """9.5 N on z found by the library (threshold 5 N) and 4.5 N by the law (threshold 5
-    N): left when the additions produce less than half of it on those samples, not when
-    they produce more; nothing below every threshold is ever left."""
-    explained = {"z": {"library": 9.5, "law": 4.5, "per_foot": 0.0},
-                 "h": {"library": 8.0, "law": 3.0, "per_foot": 0.0}}    # h: below 9.5 / 6
+    """9.5 N on z found by the library (threshold 5 N, margin 1.5: 7.5 N) and 7.0 N by the
+    law: left when the additions produce less than half of it on those samples, not when
+    they produce more; a stage below its threshold × the margin is no evidence."""
+    assert EVIDENCE_MARGIN == 1.5 and FOOTPRINT_SHARE == 0.5
+    explained = {"z": {"library": 9.5, "law": 7.0, "per_foot": 0.0},
+                 "h": {"library": 12.0, "law": 8.0, "per_foot": 0.0}}   # h: < 14.25 and 9
     left = unproduced(explained, 0.8, ("elastic_unloading",), 259)
     assert [(f.axis, f.stage, f.explained, f.footprint, f.threshold) for f in left] == [
         ("z", "library", 9.5, 0.8, 5.0)]
     assert unproduced(explained, FOOTPRINT_SHARE * 9.5 + 1e-9, (), 259) == ()
     assert unproduced(explained, 10.0, ("user_hard_layer",), 259) == ()
+    # 5.6 N of z (the strong elastic unloading's own data): above 5 N, below the margin
+    assert unproduced({"z": {"library": 5.6, "law": 0.0, "per_foot": 0.0}}, 0.0, (), 9) == ()
     # the law relative to its own threshold (6 N on h) beats the library's 9.5 N
-    both = unproduced({"h": {"library": 10.0, "law": 7.5, "per_foot": 0.0}}, 0.0, (), 100)
-    assert [(f.stage, f.explained) for f in both] == [("law", 7.5)]
+    both = unproduced({"h": {"library": 15.0, "law": 10.0, "per_foot": 0.0}}, 0.0, (), 100)
+    assert [(f.stage, f.explained) for f in both] == [("law", 10.0)]
 
 
 def test_additions_that_change_what_the_equation_reads_make_it_inapplicable():
