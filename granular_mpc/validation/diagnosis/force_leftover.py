@@ -40,11 +40,11 @@ import numpy as np
 from ...effects import EffectInfo
 from ...effects.state import PatchState
 from ...effects.tracing import trace_terrain_force
+from .acceptance_records import ForceLeftover
 from .features import AXES, ForceSamples, force_samples, sample_columns
 from .problem import Problem
 from .proposal import (LAW_FEATURES, MIN_EXPLAINED_FORCE, MIN_LAW_FORCE, MIN_SAMPLES,
                        PER_FOOT_FEATURES, explained_rms, law_fit)
-from .acceptance_records import ForceLeftover
 from .sparse import sparse_fit
 
 #: the proposal's stages (§3.6): name → (least explained force per axis [N], the laws
@@ -157,9 +157,9 @@ def force_leftover(problem: Problem, theta: Mapping[str, float],
                    added: Sequence[tuple[EffectInfo, Mapping[str, float]]], *,
                    seed: int = 0) -> tuple[ForceLeftover, ...]:
     """The force axes whose equation error holds a missing force (a stage of the proposal
-    explains at least its threshold) that the added effects do not produce: their
-    combined force on the sinking samples is less than :data:`FOOTPRINT_SHARE` of it (the
-    module docstring); () when fewer than :data:`~.proposal.MIN_SAMPLES` sinking samples.
+    explains :data:`EVIDENCE_MARGIN` times its threshold) that the added effects do not
+    produce: their combined force on the sinking samples is less than
+    :data:`FOOTPRINT_SHARE` of it (the module docstring); () when fewer than :data:`~.proposal.MIN_SAMPLES` sinking samples.
     The caller leaves out the effects :func:`inapplicable` names.
 
     Args:
@@ -227,5 +227,6 @@ def explained_by(fs: ForceSamples, axis: str, stage: str, nuisance: np.ndarray,
     return explained_rms(fit.rmse_before, fit.rmse_after)
 
 
-__all__ = ["ForceLeftover", "force_leftover", "unproduced", "explained_by", "STAGES", "FOOTPRINT_SHARE", "EVIDENCE_MARGIN", "effect_force_columns", "inapplicable",
+__all__ = ["ForceLeftover", "force_leftover", "unproduced", "explained_by", "STAGES",
+           "FOOTPRINT_SHARE", "EVIDENCE_MARGIN", "effect_force_columns", "inapplicable",
            "submerged_area", "READ_BY_THE_EQUATION"]
