@@ -100,9 +100,9 @@ class CandidateSet:
         ``tau_*``, ``base_*``): their sensitivities need replays, like the other kinds."""
         return frozenset(n for n, cols in self.sensor_outputs.items() if changes_replay(cols))
 
-    def sensors_changing(self, prefix: str) -> frozenset[str]:
+    def sensors_changing(self, prefix: str | tuple[str, ...]) -> frozenset[str]:
         """The sensor effects that change some column named ``prefix…`` (``"tau_"``: the
-        measured joint torques)."""
+        measured joint torques; a tuple: any of those prefixes)."""
         return frozenset(n for n, cols in self.sensor_outputs.items()
                          if any(c.startswith(prefix) for c in cols))
 

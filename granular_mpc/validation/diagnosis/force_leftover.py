@@ -41,6 +41,7 @@ from ...effects import EffectInfo
 from ...effects.state import PatchState
 from ...effects.tracing import trace_terrain_force
 from .acceptance_records import ForceLeftover
+from .candidates import CandidateSet
 from .features import AXES, ForceSamples, force_samples, sample_columns
 from .problem import Problem
 from .proposal import (LAW_FEATURES, MIN_EXPLAINED_FORCE, MIN_LAW_FORCE, MIN_SAMPLES,
@@ -73,18 +74,12 @@ EVIDENCE_MARGIN = 1.5
 READ_BY_THE_EQUATION = ("grf_", "q_", "dq_", "base_", "intrusion_")
 
 
-def inapplicable(added: Sequence[EffectInfo],
-                 sensor_outputs: Mapping[str, frozenset[str]]) -> tuple[str, ...]:
+def inapplicable(added: Sequence[str], candidates: CandidateSet) -> tuple[str, ...]:
     """The added effects that change what the equation error reads (geometry terms, and
     sensor effects changing a column of :data:`READ_BY_THE_EQUATION`)."""
-    out = []
-    for info in added:
-        if info.kind == "geometry":
-            out.append(info.name)
-        elif info.kind == "sensor" and any(c.startswith(READ_BY_THE_EQUATION)
-                                           for c in sensor_outputs.get(info.name, ())):
-            out.append(info.name)
-    return tuple(out)
+    sensors = candidates.sensors_changing(READ_BY_THE_EQUATION)
+    return tuple(n for n in added
+                 if candidates.kind(n) == "geometry" or n in sensors)
 
 
 def submerged_area(depth: np.ndarray, radius: float, chord: float, width: float) -> np.ndarray:
@@ -183,8 +178,7 @@ def force_leftover(problem: Problem, theta: Mapping[str, float],
     total = {ax: sum((c[ax] for c in cols_f.values()), np.zeros(fs.n)) for ax in AXES}
     footprint = float(np.sqrt(np.mean(total["h"] ** 2 + total["z"] ** 2)))
     names = tuple(i.name for i, _ in added if i.kind in ("terrain_force", "joint", "sensor"))
-    explained = {ax: {s: explained_by(fs, ax, s, fs.nuisance[ax][:, None], seed)
-                      for s in STAGES} for ax in AXES}
+    explained = {ax: {s: explained_by(fs, ax, s, seed) for s in STAGES} for ax in AXES}
     return unproduced(explained, footprint, names, fs.n)
 
 
@@ -211,17 +205,15 @@ def unproduced(explained: Mapping[str, Mapping[str, float]], footprint: float,
     return tuple(out)
 
 
-def explained_by(fs: ForceSamples, axis: str, stage: str, nuisance: np.ndarray,
-                 seed: int) -> float:
+def explained_by(fs: ForceSamples, axis: str, stage: str, seed: int) -> float:
     """RMS [N] of the equation error of ``axis`` that one stage of the proposal
-    (:data:`STAGES`) explains beyond the unpenalised ``nuisance`` columns, in sample."""
+    (:data:`STAGES`) explains beyond ζ's column, in sample."""
     _, laws, dissipative = STAGES[stage]
     if laws is None:
-        fit = sparse_fit(fs.features, nuisance, fs.target[axis], fs.trial, fs.window,
-                         seed=seed)
+        fit = sparse_fit(fs.features, fs.nuisance[axis][:, None], fs.target[axis], fs.trial,
+                         fs.window, seed=seed)
     else:
-        fit = law_fit(fs, axis, seed=seed, laws=laws, dissipative=dissipative,
-                      nuisance=nuisance)
+        fit = law_fit(fs, axis, seed=seed, laws=laws, dissipative=dissipative)
     if fit is None or not fit.selected.any():
         return 0.0
     return explained_rms(fit.rmse_before, fit.rmse_after)

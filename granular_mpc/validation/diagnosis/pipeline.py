@@ -11,7 +11,7 @@ from __future__ import annotations
 import time as _time
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 from ...config import SimConfig
 from ...effects import load_effect_file
@@ -19,7 +19,7 @@ from ...output import make_output_folder
 from ..dataformat import load_dataset
 from ..replay.pool import ReplayPool
 from .calibration import calibrate_model
-from .candidates import (build_candidates, check_sensor_candidates, drop_dead_candidates,
+from .candidates import (CandidateSet, build_candidates, check_sensor_candidates, drop_dead_candidates,
                          drop_uninvertible_sensor_candidates,
                          drop_diverged_candidates, kept_sensitivities)
 from .coverage import (assess_candidates, calibration_text, can_calibrate,
@@ -27,7 +27,7 @@ from .coverage import (assess_candidates, calibration_text, can_calibrate,
                        write_coverage)
 from .force_leftover import ForceLeftover, force_leftover, inapplicable
 from .localise import localise_models, where_summary
-from .problem import load_problem
+from .problem import Problem, load_problem
 from .proposal import pointed_proposal, propose_terms
 from .refine import refine
 from .report import figures as make_figures
@@ -41,18 +41,18 @@ from .untested import with_untested
 from .verdict import VerdictInputs, best_candidate_statement, decide
 
 
-def added_force_leftover(problem, cands, theta, selected: Sequence[str], fitted, *,
-                         seed: int) -> tuple[ForceLeftover, ...]:
+def added_force_leftover(problem: Problem, cands: CandidateSet, theta: Mapping[str, float],
+                         selected: Sequence[str], fitted: Mapping[str, Mapping[str, float]],
+                         *, seed: int) -> tuple[ForceLeftover, ...]:
     """:func:`.force_leftover.force_leftover` of the added effects at their fitted values;
     () when nothing was added or an addition changes what the equation error reads."""
-    added = [cands.infos[n] for n in selected]
-    if not added or inapplicable(added, cands.sensor_outputs):
+    if not selected or inapplicable(selected, cands):
         return ()
     values = []
-    for info in added:
-        p = info.neutral_params()
-        p.update(fitted.get(info.name, {}))
-        values.append((info, p))
+    for name in selected:
+        p = cands.infos[name].neutral_params()
+        p.update(fitted.get(name, {}))
+        values.append((cands.infos[name], p))
     return force_leftover(problem, theta, values, seed=seed)
 
 

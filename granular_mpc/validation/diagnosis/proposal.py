@@ -120,7 +120,7 @@ def axis_passes(heldout_reduction: float, heldout_reduction_selected: float,
 
 def law_fit(fs: ForceSamples, axis: str, *, seed: int = 0,
             laws: Mapping[str, tuple[str, ...]] = LAW_FEATURES,
-            dissipative: bool = True, nuisance: np.ndarray | None = None) -> SparseFit | None:
+            dissipative: bool = True) -> SparseFit | None:
     """The sparse fit of one axis on its physical laws alone (``laws[axis]``, ζ
     unpenalised); when ``dissipative``, coefficients of the wrong physical sign (> 0) are
     dropped and the rest refitted; arrays over all of :data:`FEATURES` (0 / unselected
@@ -132,16 +132,14 @@ def law_fit(fs: ForceSamples, axis: str, *, seed: int = 0,
         seed: seed of the stability resamples.
         laws: axis → feature names (:data:`LAW_FEATURES`, :data:`PER_FOOT_FEATURES`).
         dissipative: whether a coefficient must oppose the motion (≤ 0).
-        nuisance: (n, K) unpenalised columns (default: the axis's ζ column alone).
 
     Returns:
         The fit, or None when no law is left.
     """
     idx = [feature_names().index(n) for n in laws[axis]]
-    nuis = fs.nuisance[axis][:, None] if nuisance is None else nuisance
     while idx:
-        fit = sparse_fit(fs.features[:, idx], nuis, fs.target[axis], fs.trial, fs.window,
-                         seed=seed)
+        fit = sparse_fit(fs.features[:, idx], fs.nuisance[axis][:, None], fs.target[axis],
+                         fs.trial, fs.window, seed=seed)
         wrong = {i for j, i in enumerate(idx)
                  if dissipative and fit.selected[j] and fit.coef[j] > 0}
         if not wrong:
