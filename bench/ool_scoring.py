@@ -68,6 +68,11 @@ def truth_reduction_calibrated(row: dict, ch: str) -> float:
     return math.nan
 
 
+def user_in(run: dict, form) -> bool:
+    """Whether the diagnosis ``run`` had the form's user term among its candidates."""
+    return bool(form) and form.user in run.get("ranks", {})
+
+
 def score(row: dict) -> dict:
     """Per-case judgements for the targets table.
 
@@ -104,6 +109,15 @@ def score(row: dict) -> dict:
                        "proposal" if found_name.startswith(PROPOSED_PREFIX) else "user")
     out["found_proposal"] = out["found_by"] == "proposal"
     out["found_user"] = out["found_by"] == "user"
+    # the proposal-alone run (out_of_library.py); rows of older runs have none: their
+    # feedback run stands in when it had no user term in it, else it is unknown (nan)
+    if "fb_alone" in row or not (fb and user_in(fb, form)):
+        alone = row["fb_alone"] if "fb_alone" in row else fb
+        out["found_proposal_alone"] = bool(
+            alone and alone["rank1_added"] and alone["rank1"].startswith(PROPOSED_PREFIX)
+            and (_reduction(alone, ch) or 0.0) >= FOUND_REDUCTION)
+    else:
+        out["found_proposal_alone"] = math.nan
     user = form.user if form else ""
     out["user_rank"] = (fb or {}).get("ranks", {}).get(user) if user else None
     out["user_added"] = bool(fb and user in fb["added"])
@@ -186,6 +200,8 @@ def figures(rows: list[dict]) -> dict:
         "ool_found_rate": rate(single, "found"),
         "ool_found_by_proposal_rate": rate(single, "found_proposal"),
         "ool_found_by_user_term_rate": rate(single, "found_user"),
+        "ool_found_by_proposal_alone_rate": rate(single, "found_proposal_alone"),
+        "ool_found_by_proposal_alone_rate_detectable": rate(detectable, "found_proposal_alone"),
         "ool_detectable_rate": rate(single, "detectable"),
         "ool_found_rate_detectable": rate(detectable, "found"),
         "ool_detectable_calibrated_rate": rate(single, "detectable_calibrated"),
@@ -248,6 +264,7 @@ def targets_table(rows: list[dict]) -> str:
              f"| out-of-library: a wrong term presented as the answer | {_frac(rows, 'ool', 'wrong_answer')} | ≤ 10 % |",
              f"| out-of-library: proposal (or user term) ranked first, affected error −50 % | {_frac(rows, 'ool', 'found')} | ≥ 70 % |",
              f"| … found by the proposal / by the user term | {_frac(rows, 'ool', 'found_proposal')} / {_frac(rows, 'ool', 'found_user')} | |",
+             f"| … found by the proposal alone (a feedback run without the user term; all / detectable) | {_frac(rows, 'ool', 'found_proposal_alone')} / {_frac(rows, 'ool', 'found_proposal_alone', 'detectable')} | |",
              f"| … detectable cases (the true model: affected error −50 %) | {_frac(rows, 'ool', 'detectable')} | |",
              f"| … found among the detectable (proposal / user term) | {_frac(rows, 'ool', 'found', 'detectable')} ({_frac(rows, 'ool', 'found_proposal', 'detectable')} / {_frac(rows, 'ool', 'found_user', 'detectable')}) | ≥ 70 % |",
              f"| … detectable against the calibrated model (the baseline of 'found') | {_frac(rows, 'ool', 'detectable_calibrated')} | |",

@@ -11,7 +11,8 @@ Every hidden effect here is written with the public plugin API (``register_effec
 would be, and none of them is in the effects library (:data:`FORMS`: six terrain forces,
 two joint torques, three sensor maps). Per case one plant run (``synth``, no noise: 3
 trials at 0.15 / 0.25 / 0.35 m/s × ``--steps`` stances, the test suite's design) is
-turned into a data set with sensor noise level 1 (``noisy_copy``) and diagnosed twice:
+turned into a data set with sensor noise level 1 (``noisy_copy``) and diagnosed two or
+three times:
 
 1. **library run**: the library's seven effects as candidates (what a new user gets);
 2. **feedback run** (when the library run proposed anything): the library plus the
@@ -19,7 +20,11 @@ turned into a data set with sensor noise level 1 (``noisy_copy``) and diagnosed 
    (``proposed_force.py``, ``proposed_joint.py``, ``proposed_torque_sensor.py``; only
    effects that met their evidence rule are written), and, with ``--user-terms``, the
    true form registered under ``user_<form>`` with a neutral default: the user who writes
-   the right term from the localisation.
+   the right term from the localisation;
+3. **proposal-alone run** (with ``--user-terms``, when anything was proposed): the library
+   plus the proposed effects only — what a user who writes nothing gets (in the feedback
+   run the user term, the same effect, takes the proposal's rank). Without
+   ``--user-terms`` the feedback run is this run.
 
 Cases: each form at two magnitudes × ``--seeds``; pairs (a library effect + a form at its
 first magnitude, first seed); null sets without any effect but with a plant whose φ_s,
@@ -44,6 +49,8 @@ error, affected-channel reduction by the feedback run / by the truth, found by w
 Figures (``name: value``): ool_wrong_answer_rate, ool_found_rate (proposal or user term
 ranked first in the feedback run and the affected channel's replay RMSE −50 %),
 ool_found_by_proposal_rate, ool_found_by_user_term_rate (the same split by who found it),
+ool_found_by_proposal_alone_rate (the proposal-alone run: proposal ranked first, added,
+affected error −50 %),
 ool_detectable_rate, and ool_found_rate_detectable (and its split) over the detectable cases,
 pair_both_found_rate (and pair_both_found_rate_detectable over the pairs whose form is detectable alone, :func:`ool_scoring.pair_form_detectable`), pair_rank1_rate, pair_coef_within_15pct_rate, null_added_rate,
 added_worsening (added terms whose replay worsens a channel they are credited with),
@@ -164,16 +171,27 @@ def run_case(case: Case, root: Path, steps: int, n_boot: int, user_terms: bool,
     files = [str(lib.out_dir / f) for f in prop.files] if prop is not None else []
     cands = library + [Path(f).stem for f in files]
     assert set(cands[len(library):]) <= set(proposed_effects(prop)), (files, prop)
-    if user_terms and case.form:
-        cands.append(FORM_BY_NAME[case.form].user)
-    row["fb"] = None
+    user = FORM_BY_NAME[case.form].user if user_terms and case.form else ""
+    row["fb"] = row["fb_alone"] = None
     row["measurement"] = measurement
-    if len(cands) > len(library):
+    if files or user:
         t0 = time.perf_counter()
-        fb = diagnose(noisy, root / f"{case.tag}_fb", candidates=cands, seed=case.seed,
-                      n_boot=n_boot, workers=1, figures=False, effect_files=files)
+        fb = diagnose(noisy, root / f"{case.tag}_fb", candidates=cands + [user] * bool(user),
+                      seed=case.seed, n_boot=n_boot, workers=1, figures=False,
+                      effect_files=files)
         row["fb"] = _summary(fb)
         row["fb_s"] = time.perf_counter() - t0
+    if files and user:
+        # the proposal on its own, as a user who writes nothing would pass it back: the
+        # user term beside it would take the rank of the same effect
+        t0 = time.perf_counter()
+        alone = diagnose(noisy, root / f"{case.tag}_fb_alone", candidates=cands,
+                         seed=case.seed, n_boot=n_boot, workers=1, figures=False,
+                         effect_files=files)
+        row["fb_alone"] = _summary(alone)
+        row["fb_s"] += time.perf_counter() - t0
+    elif files:
+        row["fb_alone"] = row["fb"]         # the feedback run had no user term
     return row
 
 

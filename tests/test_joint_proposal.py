@@ -18,7 +18,7 @@ from granular_mpc.rotations import matrix_from_quat_xyzw
 from granular_mpc.validation.diagnosis.joint_proposal import (
     MAX_SENSOR_GAIN, MIN_EXPLAINED_RMS, PROPOSED_JOINT, PROPOSED_SENSOR, SKIP_AFTER,
     SMOOTH_WINDOW, fit_joint_terms, footprint_exit, joint_effect_source, joint_passes,
-    joint_samples, joint_torque, kept_rows, sensor_gain)
+    joint_samples, joint_torque, kept_rows, leg_pairs, sensor_gain)
 
 RATE = 500.0
 B_VISCOUS = 0.4          # hidden viscous joint torque −b·q̇ [N·m·s/rad]
@@ -29,10 +29,11 @@ def biped():
     return load_biped("yobogo10s", with_visuals=False)
 
 
-def _trial(biped, seed: int, hidden_b: float, gain: float = 0.0) -> pd.DataFrame:
+def _trial(biped, seed: int, hidden_b: float, gain: float = 0.0, hidden=None) -> pd.DataFrame:
     """A smooth floating-base motion (no foot force), its RNEA torques, and the measured
     torque = (1 + gain)·(RNEA − the hidden torque −b·q̇) (the actuators were asked for
-    RNEA − hidden; a torque sensor with a gain error reads it)."""
+    RNEA − hidden; a torque sensor with a gain error reads it). ``hidden(q_a, q̇_a)``:
+    another hidden torque [N·m] instead of −b·q̇."""
     rng = np.random.default_rng(seed)
     m, d = biped.model, biped.create_data()
     t = np.arange(0.0, 3.0, 1.0 / RATE)
@@ -62,7 +63,8 @@ def _trial(biped, seed: int, hidden_b: float, gain: float = 0.0) -> pd.DataFrame
         a[3] = awx
         a[biped.idx_v] = ddqa
         tau_rnea = pin.rnea(m, d, q, v, a)[biped.idx_v]
-        tau_meas = (1.0 + gain) * (tau_rnea - (-hidden_b * dqa))
+        extra = -hidden_b * dqa if hidden is None else hidden(qa, dqa)
+        tau_meas = (1.0 + gain) * (tau_rnea - extra)
         stance = "left" if int(tk / 0.5) % 2 == 0 else "right"
         row = {TIME: tk, STANCE: stance}
         row.update(dict(zip(joint_columns(J, "q"), qa)))
@@ -77,8 +79,8 @@ def _trial(biped, seed: int, hidden_b: float, gain: float = 0.0) -> pd.DataFrame
     return pd.DataFrame(rows)
 
 
-def _samples(biped, hidden_b, gain=0.0):
-    trials = {f"trial_{i}": _trial(biped, i, hidden_b, gain) for i in range(3)}
+def _samples(biped, hidden_b, gain=0.0, hidden=None):
+    trials = {f"trial_{i}": _trial(biped, i, hidden_b, gain, hidden) for i in range(3)}
     return joint_samples(trials, biped, RATE)
 
 
@@ -197,3 +199,45 @@ def test_rows_wait_for_the_trailing_foot_to_leave_its_footprint():
     assert fixed[200 + int(round(SKIP_AFTER * RATE))]            # the fixed rule keeps row 245
     assert not waited[200:271 + blur].any() and waited[271 + blur]
     np.testing.assert_array_equal(waited[:200], fixed[:200])
+
+
+def _knee_spring(k_left: float, k_right: float, q0: float = 1.2):
+    """A hidden parallel spring in the knees: τ = −k·(q − q0) (actuator order
+    left_hip_abd, left_hip_pitch, left_knee, right_…)."""
+    def torque(qa, dqa):
+        tau = np.zeros_like(qa)
+        tau[2], tau[5] = -k_left * (qa[2] - q0), -k_right * (qa[5] - q0)
+        return tau
+    return torque
+
+
+def test_a_spring_in_both_knees_is_fitted_once_for_both_legs(biped):
+    """The same spring in both knees: one fit of both legs' rows (half the coefficients on
+    twice the rows), its k and rest angle those of the spring; the other joints, with
+    nothing hidden, propose nothing."""
+    assert leg_pairs(biped.joint_names) == [(0, 3), (1, 4), (2, 5)]
+    s = _samples(biped, 0.0, hidden=_knee_spring(2.0, 2.0))
+    terms, fits = fit_joint_terms(s, biped.joint_names, seed=0)
+    knees = {f.joint: f for f in fits if f.joint.endswith("knee")}
+    assert all(f.proposed and f.both_legs for f in knees.values())
+    assert not any(f.proposed for f in fits if not f.joint.endswith("knee"))
+    coef = {(t.joint, t.feature): t.coefficient for t in terms}
+    for side in ("left", "right"):
+        k = -coef[(f"{side}_knee", "q")]
+        assert abs(k - 2.0) < 0.1 * 2.0
+        assert abs(coef[(f"{side}_knee", "const")] / k - 1.2) < 0.05      # rest angle [rad]
+    assert coef[("left_knee", "q")] == coef[("right_knee", "q")]
+
+
+def test_a_spring_in_one_knee_stays_a_fit_of_that_knee(biped):
+    """A spring in the left knee only: the fit of both legs would halve it on each, far
+    worse held out than the two knees' own fits — the left knee gets its own term, the
+    right none."""
+    s = _samples(biped, 0.0, hidden=_knee_spring(2.0, 0.0))
+    terms, fits = fit_joint_terms(s, biped.joint_names, seed=0)
+    knees = {f.joint: f for f in fits if f.joint.endswith("knee")}
+    assert not any(f.both_legs for f in knees.values())
+    assert knees["left_knee"].proposed and not knees["right_knee"].proposed
+    k = -next(t.coefficient for t in terms if (t.joint, t.feature) == ("left_knee", "q"))
+    assert abs(k - 2.0) < 0.1 * 2.0
+    assert not any(t.joint == "right_knee" for t in terms)

@@ -287,3 +287,36 @@ def test_pairs_both_found_the_partner_coefficient_and_the_detectable_pairs(ool):
     assert "| both effects of a pair found | 1/2 |" in table
     assert "| … among the pairs whose form is detectable alone (its single case, same seed) | 1/1 |" in table
     assert "| main coefficient within 15 % (pair member) | 1/2 |" in table
+
+
+def test_found_by_the_proposal_alone(ool):
+    """The proposal-alone run (no user term among the candidates) scores the proposal on
+    its own; rows without that run use the feedback run when it had no user term in it,
+    and are unknown (nan, not counted) when the user term was in it."""
+    vd = ool.Case("vdamp_m1_s1", 1, "vdamp", 15.0)
+    lib = _run("partially_explained", ["cohesion"], {"intrusion_z": [0.008, 0.007]})
+    both = _run("missing_effect", ["user_vdamp"], {"intrusion_z": [0.008, 0.002]})
+    both["ranks"] = {"user_vdamp": 1, "proposed_force": 2}
+    alone = _run("missing_effect", ["proposed_force"], {"intrusion_z": [0.008, 0.003]})
+    alone["ranks"] = {"proposed_force": 1}
+    row = {"case": vd.__dict__, "lib": lib, "proposal": {"files": ["proposed_force.py"]},
+           "fb": both, "fb_alone": alone, "truth_replay": {"intrusion_z": [0.008, 0.002]}}
+    s = ool.score(row)
+    assert s["found_by"] == "user" and s["found_proposal_alone"] is True
+    # the proposal alone cuts the channel by 25 % only: not found
+    weak = {**row, "fb_alone": {**alone, "replay": {"intrusion_z": [0.008, 0.006]}}}
+    assert ool.score(weak)["found_proposal_alone"] is False
+    # nothing proposed: the proposal-alone run did not happen, and nothing was found by it
+    none = {**row, "proposal": None, "fb_alone": None}
+    assert ool.score(none)["found_proposal_alone"] is False
+    # an older row: its feedback run had the user term, so the proposal alone is unknown
+    old = {k: v for k, v in row.items() if k != "fb_alone"}
+    assert math.isnan(ool.score(old)["found_proposal_alone"])
+    # an older row without user terms: the feedback run was the proposal alone
+    no_user = {**old, "fb": alone}
+    assert ool.score(no_user)["found_proposal_alone"] is True
+    figs = ool.figures([row, weak, none, old])
+    assert figs["ool_found_by_proposal_alone_rate"] == pytest.approx(1 / 3)
+    assert figs["ool_found_by_proposal_alone_rate_detectable"] == pytest.approx(1 / 3)
+    assert ("| … found by the proposal alone (a feedback run without the user term; all / "
+            "detectable) | 1/3 / 1/3 | |") in ool.targets_table([row, weak, none, old])

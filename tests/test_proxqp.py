@@ -273,3 +273,30 @@ def test_native_build_walks_on_sand_over_perturbed_seeds(tmp_path):
     for r in runs:
         assert r["command"] == 0.2                    # sim/sand_walk.yaml
         assert abs(r["mean_speed_mps"] - r["command"]) <= NATIVE_SPEED_BUDGET * r["command"], runs
+
+
+def test_further_settings_are_applied_and_unknown_names_rejected():
+    p = random_qp(np.random.default_rng(0))
+    # the settings override the constructor's own: one iteration cannot reach 1e-9
+    capped = ProxQPSolver(12, 2, 8, box=True, eps_abs=1e-9, max_iter=1000,
+                          settings={"max_iter": 1}).solve(p)
+    assert capped.status is QPStatus.MAX_ITER
+    free = ProxQPSolver(12, 2, 8, box=True, eps_abs=1e-9, max_iter=1000).solve(p)
+    assert free.status is QPStatus.SOLVED and free.iterations > 1
+    with pytest.raises(SolverError, match="default_rh0.*allowed:.*default_rho"):
+        ProxQPSolver(12, 2, 8, settings={"default_rh0": 1e-7})
+
+
+def test_proxsuite_timings_split_the_call_and_leave_the_numbers_alone():
+    rng = np.random.default_rng(1)
+    problems = [random_qp(rng) for _ in range(5)]
+    timed = ProxQPSolver(12, 2, 8, box=True, eps_abs=1e-9, max_iter=1000, timings=True)
+    plain = ProxQPSolver(12, 2, 8, box=True, eps_abs=1e-9, max_iter=1000)
+    for p in problems:      # warm-started along the sequence, as the MPC does
+        a, b = timed.solve(p), plain.solve(p)
+        np.testing.assert_array_equal(a.x, b.x)
+        assert a.iterations == b.iterations
+        # ProxSuite's own timers run inside our call's
+        assert 0.0 <= a.setup_ms and 0.0 < a.kernel_ms
+        assert a.setup_ms + a.kernel_ms <= a.solve_ms
+        assert np.isnan(b.setup_ms) and np.isnan(b.kernel_ms)

@@ -199,6 +199,12 @@ class QPSolution:
     y: np.ndarray | None = None     # equality multipliers
     z: np.ndarray | None = None     # inequality multipliers
     retried: bool = False           # the warm-started attempt failed, a cold one was made
+    #: ProxSuite's own timings of the last attempt (solver built with ``timings=True``;
+    #: else nan): ``setup_ms`` its model update and preconditioning, ``kernel_ms`` its
+    #: iterations [ms]; ``mu_updates``: how often it changed its penalties μ there
+    setup_ms: float = float("nan")
+    kernel_ms: float = float("nan")
+    mu_updates: int = 0
 
 
 @dataclass
@@ -226,6 +232,13 @@ class ProxQPSolver:
         multipliers: whether a solution carries the multipliers (:attr:`QPSolution.y`,
             :attr:`QPSolution.z`, copied out of ProxSuite); False leaves them None and saves
             the two copies (the MPC, which reads only ``x``). ``x`` is the same either way.
+        settings: further ProxSuite settings by name (``rho``-, ``mu``- and refinement
+            parameters of ``proxsuite.proxqp.Settings``, e.g. ``{"default_rho": 1e-7}``),
+            applied to every fresh ProxSuite object; an unknown name is a
+            :class:`SolverError`. For studies of the solver (``bench/proxsuite_settings.py``).
+        timings: whether each solution carries ProxSuite's own split of its time
+            (:attr:`QPSolution.setup_ms`, :attr:`QPSolution.kernel_ms`); the numbers of the
+            solve are the same either way.
     """
 
     n: int
@@ -238,6 +251,8 @@ class ProxQPSolver:
     mu_in_reset: float | None = None
     eps_primal_inf: float | None = None
     multipliers: bool = True
+    settings: dict | None = None
+    timings: bool = False
     _qp: object = field(default=None, repr=False)
     _initialised: bool = field(default=False, repr=False)
     _warm: bool = field(default=False, repr=False)
@@ -260,6 +275,12 @@ class ProxQPSolver:
             raise SolverError(f"ProxSuite dense backend {self.backend!r} unknown; allowed: "
                               f"{', '.join(DENSE_BACKENDS)}")
         self._backend = getattr(px.proxqp.dense.DenseBackend, DENSE_BACKENDS[self.backend])
+        known = ({a for a in dir(px.proxqp.dense.QP(1, 0, 0).settings) if a[0] != "_"}
+                 if self.settings else set())
+        unknown = sorted(set(self.settings or {}) - known)
+        if unknown:
+            raise SolverError(f"ProxSuite settings {', '.join(unknown)} unknown; allowed: "
+                              f"{', '.join(sorted(known))}")
         self._reset()
 
     def solve(self, p: QPProblem) -> QPSolution:
@@ -315,9 +336,14 @@ class ProxQPSolver:
         if not math.isfinite(float(_add_reduce(x, None))):
             status = QPStatus.NON_FINITE
         if not self.multipliers:
-            return QPSolution(x, status, int(info.iter), 0.0, float(info.objValue))
-        return QPSolution(x, status, int(info.iter), 0.0, float(info.objValue),
-                          np.array(r.y), np.array(r.z))
+            sol = QPSolution(x, status, int(info.iter), 0.0, float(info.objValue))
+        else:
+            sol = QPSolution(x, status, int(info.iter), 0.0, float(info.objValue),
+                             np.array(r.y), np.array(r.z))
+        if self.timings:        # ProxSuite reports microseconds
+            sol.setup_ms, sol.kernel_ms = info.setup_time * 1e-3, info.solve_time * 1e-3
+            sol.mu_updates = int(info.mu_updates)
+        return sol
 
     def _reset(self) -> None:
         """A fresh ProxSuite object, cold-started (after a failure a bad previous result is
@@ -333,6 +359,9 @@ class ProxQPSolver:
         s.initial_guess = self._cold_guess
         if self.eps_primal_inf is not None:
             s.eps_primal_inf = self.eps_primal_inf
+        for name, value in (self.settings or {}).items():
+            setattr(s, name, value)
+        s.compute_timings = self.timings
         self._initialised = False
         self._warm = False
 

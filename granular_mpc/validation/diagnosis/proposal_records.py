@@ -105,6 +105,9 @@ class JointFit(Record):
         rms_before, rms_after: in-sample RMS equation error [N·m] (nuisance fitted; with
             the terms).
         proposed: whether this joint contributes terms.
+        both_legs: the fit is of this joint and the same joint of the other leg together
+            (one set of coefficients; the statistics are that fit's, over both joints'
+            rows).
     """
 
     joint: str
@@ -113,6 +116,7 @@ class JointFit(Record):
     rms_before: float
     rms_after: float
     proposed: bool
+    both_legs: bool = False
 
 
 @dataclass(frozen=True)
