@@ -176,7 +176,7 @@ def run_case(case: Case, root: Path, steps: int, n_boot: int, user_terms: bool,
     row["measurement"] = measurement
     if files or user:
         t0 = time.perf_counter()
-        fb = diagnose(noisy, root / f"{case.tag}_fb", candidates=cands + [user] * bool(user),
+        fb = diagnose(noisy, root / f"{case.tag}_fb", candidates=cands + ([user] if user else []),
                       seed=case.seed, n_boot=n_boot, workers=1, figures=False,
                       effect_files=files)
         row["fb"] = _summary(fb)

@@ -275,7 +275,7 @@ class ProxQPSolver:
             raise SolverError(f"ProxSuite dense backend {self.backend!r} unknown; allowed: "
                               f"{', '.join(DENSE_BACKENDS)}")
         self._backend = getattr(px.proxqp.dense.DenseBackend, DENSE_BACKENDS[self.backend])
-        known = ({a for a in dir(px.proxqp.dense.QP(1, 0, 0).settings) if a[0] != "_"}
+        known = ({a for a in dir(px.proxqp.Settings()) if a[0] != "_"}
                  if self.settings else set())
         unknown = sorted(set(self.settings or {}) - known)
         if unknown:

@@ -34,7 +34,7 @@ is not expressed by these features (it moves the posture RNEA is evaluated at).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -45,7 +45,7 @@ from ...columns import (BASE_ANGULAR_VELOCITY, BASE_LINEAR_VELOCITY, BASE_POSITI
 from ...robot.model import Biped
 from ...rotations import matrix_from_quat_xyzw, xyzw_from_wxyz
 from .proposal_records import JointFit, JointTerm, change_text
-from .sparse import sparse_fit
+from .sparse import SparseFit, sparse_fit
 
 #: Savitzky–Golay window [s] and order of the derivative and of the matching smoothing
 SMOOTH_WINDOW = 0.042
@@ -304,9 +304,17 @@ def leg_pairs(joint_names: Sequence[str]) -> list[tuple[int, int]]:
             if n.startswith("left_") and "right_" + n[5:] in names]
 
 
-def _fit_joints(s: JointSamples, js: Sequence[int], seed: int):
+class _GroupFit(NamedTuple):
+    """One sparse fit of some joints' equation error (one set of coefficients)."""
+
+    fit: SparseFit
+    passes: bool        # the evidence rule (:func:`joint_passes`) and a term selected
+    rows: int
+
+
+def _fit_joints(s: JointSamples, js: Sequence[int], seed: int) -> _GroupFit:
     """One sparse fit of the equation error of the joints ``js`` stacked (one set of
-    coefficients), with whether it passes :func:`joint_passes` and its rows."""
+    coefficients)."""
     parts = []
     for j in js:
         rows = s.stance_leg[:, j] == 0.0 if SWING_ONLY else np.ones(s.n, bool)
@@ -324,14 +332,14 @@ def _fit_joints(s: JointSamples, js: Sequence[int], seed: int):
                       fit.rmse_before, fit.rmse_after,
                       float(fit.coef[tau_k]) if fit.selected[tau_k] else None) \
         and bool(fit.selected.any())
-    return fit, ok, y.size
+    return _GroupFit(fit, ok, y.size)
 
 
-def _pooled_reduction(fits: Sequence, sizes: Sequence[int]) -> float:
+def _pooled_reduction(own: Sequence[_GroupFit]) -> float:
     """The held-out reduction of per-joint fits over their rows together (each joint's
     share weighted by its rows × its error's mean square)."""
-    w = np.array([n * f.rmse_before ** 2 for f, n in zip(fits, sizes)])
-    h = np.array([f.heldout_reduction_selected for f in fits])
+    w = np.array([g.rows * g.fit.rmse_before ** 2 for g in own])
+    h = np.array([g.fit.heldout_reduction_selected for g in own])
     return float(np.sum(w * h) / np.sum(w)) if np.sum(w) > 0 else 0.0
 
 
@@ -342,16 +350,15 @@ def fit_joint_terms(s: JointSamples, joint_names: Sequence[str], *, seed: int = 
     if s.n < MIN_ROWS:
         return (), ()
     single = {j: _fit_joints(s, [j], seed) for j in range(len(joint_names))}
-    groups: list[tuple[list[int], tuple]] = []
+    groups: list[tuple[tuple[int, ...], _GroupFit]] = []
     paired = set()
     for pair in leg_pairs(joint_names):
         pooled = _fit_joints(s, pair, seed)
-        own = [single[j] for j in pair]
-        if pooled[1] and pooled[0].heldout_reduction_selected >= _pooled_reduction(
-                [o[0] for o in own], [o[2] for o in own]) - POOL_MARGIN:
-            groups.append((list(pair), pooled))
+        if pooled.passes and pooled.fit.heldout_reduction_selected >= _pooled_reduction(
+                [single[j] for j in pair]) - POOL_MARGIN:
+            groups.append((pair, pooled))
             paired.update(pair)
-    groups += [([j], single[j]) for j in range(len(joint_names)) if j not in paired]
+    groups += [((j,), single[j]) for j in range(len(joint_names)) if j not in paired]
     terms: list[JointTerm] = []
     fits: list[JointFit] = []
     for js, (fit, ok, _) in groups:
