@@ -259,6 +259,7 @@ def test_meta_missing_unknown_and_wrong_keys_all_reported(tmp_path):
     meta["sample_rate"] = 200                                          # typo of sample_rate_hz
     meta["trials"]["trial_002"]["commanded_speed_mps"] = "fast"
     meta["trials"]["trial_001"]["file"] = "trial_001.txt"
+    meta["torque_hold_s"] = -0.002                                     # a hold is ≥ 0
     folder = write(tmp_path, meta={**make_meta()})
     (folder / "meta.yaml").write_text(yaml.safe_dump(meta))
     probs = problems_of(folder)
@@ -268,7 +269,8 @@ def test_meta_missing_unknown_and_wrong_keys_all_reported(tmp_path):
     has(probs, file="meta.yaml", text="trials.trial_001.file: 'trial_001.txt' must end in .csv or .parquet")
     # trial_001.csv is now not listed (the meta names trial_001.txt)
     has(probs, file="trial_001.csv", text="not listed under trials")
-    assert len(probs) == 5, "\n".join(map(str, probs))
+    has(probs, file="meta.yaml", text="torque_hold_s: Input should be greater than or equal to 0")
+    assert len(probs) == 6, "\n".join(map(str, probs))
 
 
 def test_meta_problems_do_not_hide_trial_problems(tmp_path):

@@ -30,7 +30,8 @@ def parts(workbench_data, tmp_path_factory):
     return {"full": full, "names": names, "root": root,
             "first": part("first", names[:2]), "second": part("second", names[2:]),
             "again": part("again", names[:1]),
-            "other_ground": part("other_ground", names[2:], terrain="wet sand")}
+            "other_ground": part("other_ground", names[2:], terrain="wet sand"),
+            "other_hold": part("other_hold", names[2:], torque_hold_s=0.001)}
 
 
 def test_merged_trials_are_the_sources_trials(parts, tmp_path):
@@ -43,6 +44,7 @@ def test_merged_trials_are_the_sources_trials(parts, tmp_path):
     assert ds.meta.robot == full.meta.robot and ds.meta.sample_rate_hz == full.meta.sample_rate_hz
     assert str(parts["first"]) in ds.meta.description
     assert ds.meta.generator == full.meta.generator           # the same synthetic record
+    assert ds.meta.torque_hold_s == full.meta.torque_hold_s == 0.002
 
 
 def test_clashing_trial_names_take_their_source_folder(parts, tmp_path):
@@ -66,6 +68,10 @@ def test_other_experiments_are_refused_naming_both(parts, tmp_path):
     with pytest.raises(ConfigError, match="channels") as exc:
         merge_datasets([parts["first"], fewer], tmp_path / "m3")
     assert exc.value.key == "channels"
+    # torques held for another time (another controller rate): another experiment
+    with pytest.raises(ConfigError, match="torque_hold_s") as exc:
+        merge_datasets([parts["first"], parts["other_hold"]], tmp_path / "m4")
+    assert exc.value.key == "torque_hold_s"
 
 
 def test_bad_calls_get_one_clear_error(parts, tmp_path):

@@ -15,6 +15,7 @@ from granular_mpc.columns import (BASE_ANGULAR_VELOCITY, BASE_LINEAR_VELOCITY,
 from granular_mpc.effects import effect_info, load_effect_file
 from granular_mpc.robot.model import load_biped
 from granular_mpc.rotations import matrix_from_quat_xyzw
+from granular_mpc.validation.diagnosis.held_torque import hold_delay
 from granular_mpc.validation.diagnosis.joint_proposal import (
     MAX_SENSOR_GAIN, MIN_EXPLAINED_RMS, PROPOSED_JOINT, PROPOSED_SENSOR, SKIP_AFTER,
     SMOOTH_WINDOW, fit_joint_terms, footprint_exit, joint_effect_source, joint_passes,
@@ -29,11 +30,13 @@ def biped():
     return load_biped("yobogo10s", with_visuals=False)
 
 
-def _trial(biped, seed: int, hidden_b: float, gain: float = 0.0, hidden=None) -> pd.DataFrame:
+def _trial(biped, seed: int, hidden_b: float, gain: float = 0.0, hidden=None,
+           lead: float = 0.0) -> pd.DataFrame:
     """A smooth floating-base motion (no foot force), its RNEA torques, and the measured
     torque = (1 + gain)·(RNEA − the hidden torque −b·q̇) (the actuators were asked for
     RNEA − hidden; a torque sensor with a gain error reads it). ``hidden(q_a, q̇_a)``:
-    another hidden torque [N·m] instead of −b·q̇."""
+    another hidden torque [N·m] instead of −b·q̇. ``lead`` [s]: the torque logged at t is
+    the one acting at t + lead (a command held after its stamp acts later)."""
     rng = np.random.default_rng(seed)
     m, d = biped.model, biped.create_data()
     t = np.arange(0.0, 3.0, 1.0 / RATE)
@@ -43,40 +46,50 @@ def _trial(biped, seed: int, hidden_b: float, gain: float = 0.0, hidden=None) ->
     q0 = np.array([0.0, -0.5, 1.2, 0.0, -0.5, 1.2])
     rows = []
     for tk in t:
-        qa = q0 + amp * np.sin(2 * np.pi * freq * tk + ph)
-        dqa = amp * 2 * np.pi * freq * np.cos(2 * np.pi * freq * tk + ph)
-        ddqa = -amp * (2 * np.pi * freq) ** 2 * np.sin(2 * np.pi * freq * tk + ph)
-        # the trunk: a slow roll and forward motion; v, a in Pinocchio's local convention
-        roll = 0.05 * np.sin(2 * np.pi * 0.7 * tk)
-        wx = 0.05 * 2 * np.pi * 0.7 * np.cos(2 * np.pi * 0.7 * tk)
-        awx = -0.05 * (2 * np.pi * 0.7) ** 2 * np.sin(2 * np.pi * 0.7 * tk)
-        quat = np.array([np.sin(roll / 2), 0.0, 0.0, np.cos(roll / 2)])     # x, y, z, w
-        R = matrix_from_quat_xyzw(quat)
-        v_w = np.array([0.2, 0.0, 0.0])
-        q = biped.q_from_parts(np.array([0.2 * tk, 0.0, 0.5]), quat, qa)
-        v = np.zeros(m.nv)
-        v[0:3] = R.T @ v_w
-        v[3] = wx
-        v[biped.idx_v] = dqa
-        a = np.zeros(m.nv)
-        a[0:3] = -np.cross(v[3:6], v[0:3])           # d/dt(Rᵀ v_W) with v_W constant
-        a[3] = awx
-        a[biped.idx_v] = ddqa
-        tau_rnea = pin.rnea(m, d, q, v, a)[biped.idx_v]
-        extra = -hidden_b * dqa if hidden is None else hidden(qa, dqa)
-        tau_meas = (1.0 + gain) * (tau_rnea - extra)
-        stance = "left" if int(tk / 0.5) % 2 == 0 else "right"
-        row = {TIME: tk, STANCE: stance}
-        row.update(dict(zip(joint_columns(J, "q"), qa)))
-        row.update(dict(zip(joint_columns(J, "dq"), dqa)))
-        row.update(dict(zip(joint_columns(J, "tau"), tau_meas)))
-        row.update(dict(zip(BASE_POSITION, q[0:3])))
-        row.update(dict(zip(BASE_QUATERNION, (quat[3], quat[0], quat[1], quat[2]))))
-        row.update(dict(zip(BASE_LINEAR_VELOCITY, v_w)))
-        row.update(dict(zip(BASE_ANGULAR_VELOCITY, v[3:6])))
-        row.update(dict(zip(GRF_COLUMNS, (0.0, 0.0, 0.0))))
+        row = _row(biped, m, d, tk, q0, amp, freq, ph, hidden_b, gain, hidden)
+        if lead:
+            later = _row(biped, m, d, tk + lead, q0, amp, freq, ph, hidden_b, gain, hidden)
+            row.update({c: later[c] for c in joint_columns(J, "tau")})
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _row(biped, m, d, tk, q0, amp, freq, ph, hidden_b, gain, hidden) -> dict:
+    """One row of :func:`_trial` at time ``tk``."""
+    J = biped.joint_names
+    qa = q0 + amp * np.sin(2 * np.pi * freq * tk + ph)
+    dqa = amp * 2 * np.pi * freq * np.cos(2 * np.pi * freq * tk + ph)
+    ddqa = -amp * (2 * np.pi * freq) ** 2 * np.sin(2 * np.pi * freq * tk + ph)
+    # the trunk: a slow roll and forward motion; v, a in Pinocchio's local convention
+    roll = 0.05 * np.sin(2 * np.pi * 0.7 * tk)
+    wx = 0.05 * 2 * np.pi * 0.7 * np.cos(2 * np.pi * 0.7 * tk)
+    awx = -0.05 * (2 * np.pi * 0.7) ** 2 * np.sin(2 * np.pi * 0.7 * tk)
+    quat = np.array([np.sin(roll / 2), 0.0, 0.0, np.cos(roll / 2)])     # x, y, z, w
+    R = matrix_from_quat_xyzw(quat)
+    v_w = np.array([0.2, 0.0, 0.0])
+    q = biped.q_from_parts(np.array([0.2 * tk, 0.0, 0.5]), quat, qa)
+    v = np.zeros(m.nv)
+    v[0:3] = R.T @ v_w
+    v[3] = wx
+    v[biped.idx_v] = dqa
+    a = np.zeros(m.nv)
+    a[0:3] = -np.cross(v[3:6], v[0:3])           # d/dt(Rᵀ v_W) with v_W constant
+    a[3] = awx
+    a[biped.idx_v] = ddqa
+    tau_rnea = pin.rnea(m, d, q, v, a)[biped.idx_v]
+    extra = -hidden_b * dqa if hidden is None else hidden(qa, dqa)
+    tau_meas = (1.0 + gain) * (tau_rnea - extra)
+    stance = "left" if int(tk / 0.5) % 2 == 0 else "right"
+    row = {TIME: tk, STANCE: stance}
+    row.update(dict(zip(joint_columns(J, "q"), qa)))
+    row.update(dict(zip(joint_columns(J, "dq"), dqa)))
+    row.update(dict(zip(joint_columns(J, "tau"), tau_meas)))
+    row.update(dict(zip(BASE_POSITION, q[0:3])))
+    row.update(dict(zip(BASE_QUATERNION, (quat[3], quat[0], quat[1], quat[2]))))
+    row.update(dict(zip(BASE_LINEAR_VELOCITY, v_w)))
+    row.update(dict(zip(BASE_ANGULAR_VELOCITY, v[3:6])))
+    row.update(dict(zip(GRF_COLUMNS, (0.0, 0.0, 0.0))))
+    return row
 
 
 def _samples(biped, hidden_b, gain=0.0, hidden=None):
@@ -98,6 +111,22 @@ def test_equation_error_is_zero_without_a_hidden_torque(biped):
     terms, fits = fit_joint_terms(s, biped.joint_names, seed=0)
     assert terms == ()
     assert not any(f.proposed for f in fits)
+
+
+def test_a_held_torque_is_paired_with_the_kinematics_half_its_hold_later(biped):
+    """Torques logged 1 ms before they act (a command held 2 ms after its stamp): the
+    equation error is τ̇·1 ms (≈ 0.01 N·m on this slow motion, 0.14 N·m on the gait's
+    swing hip); with the declared delay (:func:`hold_delay` of the hold) it is the
+    smoothing error of data logged at the instant the torque acts (< 1e-3 N·m)."""
+    assert hold_delay(None) == 0.0 and hold_delay(0.002) == 0.001
+    trials = {f"trial_{i}": _trial(biped, i, 0.0, lead=0.001) for i in range(3)}
+    raw = joint_samples(trials, biped, RATE)
+    paired = joint_samples(trials, biped, RATE, torque_delay=hold_delay(0.002))
+    rms_raw = float(np.sqrt(np.mean(raw.error ** 2)))
+    rms_paired = float(np.sqrt(np.mean(paired.error ** 2)))
+    assert paired.torque_delay == 0.001 and raw.torque_delay == 0.0
+    assert rms_raw > 0.005
+    assert rms_paired < 1e-3 and rms_paired < 0.05 * rms_raw
 
 
 def test_equation_error_recovers_a_hidden_viscous_torque(biped, damped):
@@ -193,6 +222,10 @@ def test_rows_wait_for_the_trailing_foot_to_leave_its_footprint():
     sole_z[400:, 1] = -0.01                                 # still in the sand at the end
     assert footprint_exit(stance, sole_z, 400) == n
     assert footprint_exit(stance, sole_z, 20) is None         # a change from "none"
+    # a trial that starts in the left stance: its touchdown is not in the trial, the surface
+    # is where the right foot touched down at the change (z = 0): out at row 248 (−0.02 +
+    # 0.03·48/70.5 > 0), not at the fixed SKIP_AFTER
+    assert footprint_exit(stance[20:], sole_z[20:], 180) == 248 - 20
     fixed = kept_rows(stance, RATE)
     waited = kept_rows(stance, RATE, sole_z)
     blur = int(round(0.5 * SMOOTH_WINDOW * RATE))

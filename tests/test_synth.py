@@ -10,7 +10,8 @@ from granular_mpc.exceptions import ConfigError
 from granular_mpc.scenario import load_scenario
 from granular_mpc.validation import load_dataset
 from granular_mpc.validation.synth import (NOISE_MODEL, add_noise, build_plant_simulation,
-                                           leading_foot_labels, normalise_noise, synthesize)
+                                           leading_foot_labels, normalise_noise, synthesize,
+                                           torque_hold)
 
 
 def test_data_set_is_format_v1_with_the_true_values_in_the_generator(workbench_data):
@@ -177,6 +178,20 @@ def test_sensor_effect_on_the_record_and_seeded_noise(tmp_path, workbench_data, 
     ta, tb, tc = (load_dataset(x).trials["trial_001"] for x in (a, b, c))
     pd.testing.assert_frame_equal(ta, tb)
     assert not np.allclose(ta["grf_z"], tc["grf_z"])
+    # the torques are the controller's commands, held one 500 Hz tick after their stamp
+    assert load_dataset(res.path).meta.torque_hold_s == 0.002
+    assert load_dataset(a).meta.torque_hold_s == clean.meta.torque_hold_s == 0.002
+
+
+def test_torque_hold_is_declared_only_when_rows_fall_on_controller_ticks():
+    """A log row logs the command just set when it falls on a tick (every tick, or every
+    other): held one controller period; between ticks (1000 or 300 Hz rows for 500 Hz
+    ticks) the hold after a row's stamp varies — nothing is declared."""
+    assert torque_hold(load_scenario("sand_walk")) == 0.002
+    assert torque_hold(load_scenario("sand_walk", ["output.log_rate_hz=250"])) == 0.002
+    assert torque_hold(load_scenario("sand_walk", ["controller.wbc.rate_hz=1000"])) == 0.001
+    for rate in (1000, 300):
+        assert torque_hold(load_scenario("sand_walk", [f"output.log_rate_hz={rate}"])) is None
 
 
 def test_bad_arguments(tmp_path):

@@ -258,6 +258,17 @@ def _run_trial(payload: Mapping[str, Any]) -> dict:
             "joint_names": list(sim.biped.joint_names)}
 
 
+def torque_hold(sc: ScenarioConfig) -> float | None:
+    """How long each logged torque is held after its stamp [s] (``meta.yaml``'s
+    ``torque_hold_s``): the controller's period when every log row falls on a controller
+    tick (the row then logs the command just set, held until the next tick); None
+    otherwise (rows between ticks log a command set earlier)."""
+    ratio = sc.controller.wbc.rate_hz / sc.log_rate_hz
+    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+        return None
+    return 1.0 / sc.controller.wbc.rate_hz
+
+
 # ----------------------------------------------------------------------------- public
 def synthesize(scenario_or_name: ScenarioConfig | str | Path, out_dir: str | Path, *,
                speeds: Sequence[float] | None = None, steps: int | None = None,
@@ -416,6 +427,7 @@ def _synthesize(sc: ScenarioConfig, path, target: DatasetTarget, *, speeds, step
         "description": description or (f"synthetic walking on {t.name}: speeds "
                                        f"{', '.join(f'{v:g}' for v in speeds)} m/s"),
         "trials": entries,
+        **({"torque_hold_s": hold} if (hold := torque_hold(sc)) is not None else {}),
         "generator": {
             "scenario": str(scenario_path or path or sc.name),
             "seed": int(seed),
@@ -500,4 +512,4 @@ def noisy_copy(src: str | Path, dst: str | Path, noise: float | Mapping[str, flo
 __all__ = ["synthesize", "SynthResult", "NOISE_MODEL", "add_noise", "noisy_copy",
            "leading_foot_labels",
            "build_plant_simulation", "resolve_effects", "normalise_noise", "dataset_target",
-           "DatasetTarget"]
+           "DatasetTarget", "torque_hold"]

@@ -81,6 +81,7 @@ def merge_datasets(sources: Sequence[str | Path], out_dir: str | Path, *,
     _same(datasets, "robot", [d.meta.robot for d in datasets])
     _same(datasets, "sample_rate_hz", [d.meta.sample_rate_hz for d in datasets])
     _same(datasets, "channels", [str(d.channels) for d in datasets])
+    _same(datasets, "torque_hold_s", [d.meta.torque_hold_s for d in datasets])
     if terrain is None:
         _same(datasets, "terrain", [d.meta.terrain for d in datasets])
     counts = Counter(n for d in datasets for n in d.trials)
@@ -106,6 +107,8 @@ def merge_datasets(sources: Sequence[str | Path], out_dir: str | Path, *,
             "description": "merged from " + "; ".join(origin)}
     if first.channels is not None:
         meta["channels"] = [g.value for g in first.channels]
+    if first.torque_hold_s is not None:
+        meta["torque_hold_s"] = first.torque_hold_s
     if gens[0] is not None and all(g == gens[0] for g in gens):
         meta["generator"] = gens[0].model_dump(mode="json")
     fmt = format or ("parquet" if any(t.file.endswith(".parquet")

@@ -104,6 +104,13 @@ class DatasetMeta(StrictModel):
     trials: dict[TrialName, TrialMeta] = Field(min_length=1,
                                                description="Trial name → trial entry.")
     description: str = Field("", description="Free-form notes on the data set.")
+    torque_hold_s: float | None = Field(
+        None, ge=0.0, le=0.1,
+        description="The tau_* columns are commands held for this long after their time stamp "
+                    "(a zero-order hold: 0.002 for a 500 Hz controller that logs its command "
+                    "at the tick) [s]. A held torque acts, on average, half the hold after its "
+                    "stamp; the diagnosis' joint torque equation error pairs the kinematics at "
+                    "t with τ(t − hold/2). Absent: the torque acts at its stamp.")
     generator: GeneratorMeta | None = Field(None, description="Set for synthetic data.")
     channels: list[ChannelGroup] | None = Field(
         None, description="Channel groups measured (joint_angles, joint_velocities, "

@@ -15,7 +15,10 @@ so the two sides of the equation see the same time blur (a torque held between
 controller ticks against a smoothed acceleration is a 1 N·m error otherwise). Rows near a
 stance change are dropped: the impact, and the trailing foot still held by the sand after
 the label moved to the other foot (no force is measured on it) — at least until its sole
-is back above the height it touched down at (:func:`footprint_exit`).
+is back above the height it touched down at, or — when the trial starts in its stance —
+the height the other foot touched down at (:func:`footprint_exit`; without that fallback
+the first change of every trial kept the trailing foot's rows in the sand, which took a
+third of a 3 N·m/rad knee spring out of its fit).
 
 Per joint, ``e_j`` is fitted with the sparse machinery of the force proposal
 (:func:`.sparse.sparse_fit`: STLSQ, trial-grouped CV, stability selection over resampled
@@ -46,6 +49,7 @@ from ...robot.model import Biped
 from ...rotations import matrix_from_quat_xyzw, xyzw_from_wxyz
 from .proposal_records import JointFit, JointTerm, change_text
 from .sparse import SparseFit, sparse_fit
+from .held_torque import delayed, hold_delay
 
 #: Savitzky–Golay window [s] and order of the derivative and of the matching smoothing
 SMOOTH_WINDOW = 0.042
@@ -118,6 +122,8 @@ class JointSamples:
         stance_leg: (N, J) 1 where the joint's leg is in stance.
         grf_z: (N,) smoothed vertical foot force of the stance foot [N].
         trial, unit: per row, its trial and its stance segment (resampling unit).
+        torque_delay: the delay d [s] of the torque acting at a row behind its logged
+            value: ``error`` and ``tau`` are at τ(t − d) (:mod:`.held_torque`; 0: τ(t)).
     """
 
     error: np.ndarray
@@ -128,6 +134,7 @@ class JointSamples:
     grf_z: np.ndarray
     trial: np.ndarray
     unit: np.ndarray
+    torque_delay: float = 0.0
 
     @property
     def n(self) -> int:
@@ -203,19 +210,24 @@ def footprint_exit(stance: np.ndarray, sole_z: np.ndarray, change: int) -> int |
     foot (the one whose stance ended there) has left its footprint: its sole's lowest point
     above the height it had at its own touchdown (the sand's surface there).
 
-    Returns None when that foot's touchdown is not in the trial; the next stance change
-    (or the trial's end) when it has not left by then.
+    When that foot's touchdown is not in the trial (the trial starts in its stance), the
+    surface is the height the leading foot touched down at, at ``change`` — the sand a
+    step away. Returns None for a change from ``"none"``; the next stance change (or the
+    trial's end) when the foot has not left by then.
     """
-    trailing = str(stance[change - 1])
+    trailing, leading = str(stance[change - 1]), str(stance[change])
     if trailing not in FOOT_SIDES:
         return None
     changes = np.flatnonzero(stance[1:change] != stance[:change - 1]) + 1
     touchdowns = changes[stance[changes] == trailing]
-    if touchdowns.size == 0:
-        return None
     f = FOOT_SIDES.index(trailing)
-    td = int(touchdowns[-1])
-    surface = float(np.mean(sole_z[td:td + TOUCHDOWN_ROWS, f]))
+    if touchdowns.size:
+        td, g = int(touchdowns[-1]), f
+    elif leading in FOOT_SIDES:
+        td, g = change, FOOT_SIDES.index(leading)
+    else:
+        return None
+    surface = float(np.mean(sole_z[td:td + TOUCHDOWN_ROWS, g]))
     later = np.flatnonzero(stance[change + 1:] != stance[change:-1])
     end = change + 1 + int(later[0]) if later.size else stance.size
     out = np.flatnonzero(sole_z[change:end, f] > surface)
@@ -246,14 +258,22 @@ def kept_rows(stance: np.ndarray, rate_hz: float, sole_z: np.ndarray | None = No
     return ok & (stance != "none")
 
 
-def joint_samples(trials, biped: Biped, rate_hz: float) -> JointSamples:
-    """The equation-error rows of every trial (``trials``: name → DataFrame)."""
+def joint_samples(trials, biped: Biped, rate_hz: float, *, torque_delay: float = 0.0
+                  ) -> JointSamples:
+    """The equation-error rows of every trial (``trials``: name → DataFrame).
+
+    ``torque_delay`` [s]: the torque acting at a row's stamp is the logged τ(t − delay)
+    (half the hold of a held command, :func:`.held_torque.hold_delay`); the error and the
+    ``tau`` feature use it."""
     J = biped.joint_names
     leg = np.array(["left" if j.startswith("left") else "right" for j in J])
     parts: dict[str, list] = {k: [] for k in ("error", "q", "dq", "tau", "st", "fz", "trial", "unit")}
     for name, df in trials.items():
         r = trial_equation_error(df, biped, rate_hz)
         ok = kept_rows(r["stance"], rate_hz, r["sole_z"])
+        if torque_delay != 0.0:
+            tau = delayed(r["tau"], rate_hz, torque_delay)
+            r = {**r, "error": r["error"] + r["tau"] - tau, "tau": tau}
         seg = np.cumsum(np.r_[0, r["stance"][1:] != r["stance"][:-1]])
         for k in ("error", "q", "dq", "tau"):
             parts[k].append(r[k][ok])
@@ -263,7 +283,7 @@ def joint_samples(trials, biped: Biped, rate_hz: float) -> JointSamples:
         parts["unit"].append(np.array([f"{name}|{s}" for s in seg[ok]]))
     cat = {k: (np.concatenate(v) if v else np.zeros((0, len(J)))) for k, v in parts.items()}
     return JointSamples(cat["error"], cat["q"], cat["dq"], cat["tau"], cat["st"],
-                        cat["fz"], cat["trial"], cat["unit"])
+                        cat["fz"], cat["trial"], cat["unit"], torque_delay)
 
 
 def feature_matrix(s: JointSamples, j: int) -> np.ndarray:
@@ -390,9 +410,13 @@ def propose_joint_terms(dataset, biped: Biped, rate_hz: float, *, seed: int = 0
     if missing:
         return (), (), ("joint proposal not available: the data set does not measure "
                         + ", ".join(missing) + " (RNEA needs the measured trunk motion)")
-    s = joint_samples(dataset.trials, biped, rate_hz)
+    hold = dataset.meta.torque_hold_s
+    s = joint_samples(dataset.trials, biped, rate_hz, torque_delay=hold_delay(hold))
     terms, fits = fit_joint_terms(s, biped.joint_names, seed=seed)
-    return terms, fits, JOINT_NOTE + f" {s.n} rows."
+    held = (f" The torques are commands held {1e3 * hold:g} ms (meta.yaml torque_hold_s): "
+            f"τ(t − {1e3 * s.torque_delay:g} ms) acts at t." if hold else
+            " The torques act at their stamps (meta.yaml declares no torque_hold_s).")
+    return terms, fits, JOINT_NOTE + f" {s.n} rows." + held
 
 
 def joint_torque(terms: Sequence[JointTerm], joint_names: Sequence[str], q_a: np.ndarray,
