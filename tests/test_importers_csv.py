@@ -169,6 +169,18 @@ def test_cli_import_bad_mapping_exits_2_naming_the_key(tmp_path, biped):
     assert not (tmp_path / "data").exists()
 
 
+def test_a_declared_torque_hold_reaches_meta_yaml_and_a_negative_one_is_refused(tmp_path, biped):
+    folder, _ = lab_files(tmp_path / "lab", make_trial(n=201), biped)
+    res = import_log(folder, lab_mapping(tmp_path, torque_hold_s=0.002), tmp_path / "ds")
+    assert load_dataset(res.path).meta.torque_hold_s == 0.002
+    res = import_log(folder, lab_mapping(tmp_path), tmp_path / "plain")
+    assert load_dataset(res.path).meta.torque_hold_s is None
+    with pytest.raises(ConfigError) as info:
+        import_log(folder, lab_mapping(tmp_path, torque_hold_s=-0.002), tmp_path / "bad")
+    assert info.value.key == "torque_hold_s"
+    assert not (tmp_path / "bad").exists()
+
+
 def test_an_unknown_channel_target_is_refused_with_the_allowed_ones(tmp_path, biped):
     """A misspelt `to:` used to be accepted and the channel silently dropped (so it read as
     'not measured'); now the mapping is refused, naming the target and the allowed ones."""

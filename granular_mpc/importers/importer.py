@@ -178,6 +178,8 @@ def import_log(source: str | Path, mapping_file: str | Path | ImportMapping,
             "channels": [g.value for g in channels],
             "trials": {mapping.trial: {"commanded_speed_mps": mapping.commanded_speed_mps,
                                        "description": f"imported from {Path(source).name}"}}}
+    if mapping.torque_hold_s is not None:
+        meta["torque_hold_s"] = mapping.torque_hold_s
     path = write_dataset(out_dir, meta, {mapping.trial: df}, format, overwrite=overwrite)
     return ImportResult(path, mapping.trial, channels, len(df), aligned.resampled, stance,
                         tuple((s.source, len(s.time)) for s in streams))

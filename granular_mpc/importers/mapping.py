@@ -105,6 +105,11 @@ class ImportMapping(StrictModel):
                        description="Trial name in the data set.")
     commanded_speed_mps: FiniteFloat = Field(description="Commanded walking speed along +x [m/s].")
     description: str = Field("", description="Free-form notes, copied to meta.yaml.")
+    torque_hold_s: float | None = Field(
+        None, ge=0.0, le=0.1,
+        description="How long the controller holds each logged torque command [s] (its "
+                    "period when it logs the command at the tick: 0.002 at 500 Hz); copied "
+                    "to meta.yaml (docs/data-format.md). Omit when the torques are measured.")
     joint_names: dict[str, str] = Field(default_factory=dict, description="Log joint name → "
                                         "robot joint name (unlisted names are used as they are).")
     streams: list[StreamMap] = Field(min_length=1)
