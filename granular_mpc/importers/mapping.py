@@ -15,6 +15,7 @@ from pydantic import Field, model_validator
 from ..columns import (BASE_ANGULAR_VELOCITY, BASE_LINEAR_VELOCITY, BASE_POSITION,
                        BASE_QUATERNION, GRF_COLUMNS, INTRUSION_COLUMNS, JointKind, foot_column)
 from ..config import FiniteFloat, PositiveFloat, StrictModel, load_yaml, validate
+from ..validation.dataformat.meta import TorqueHold
 
 #: vector targets of a channel entry → the data set columns they fill (in field order)
 VECTOR_TARGETS: dict[str, tuple[str, ...]] = {
@@ -105,8 +106,8 @@ class ImportMapping(StrictModel):
                        description="Trial name in the data set.")
     commanded_speed_mps: FiniteFloat = Field(description="Commanded walking speed along +x [m/s].")
     description: str = Field("", description="Free-form notes, copied to meta.yaml.")
-    torque_hold_s: float | None = Field(
-        None, ge=0.0, le=0.1,
+    torque_hold_s: TorqueHold | None = Field(
+        None,
         description="How long the controller holds each logged torque command [s] (its "
                     "period when it logs the command at the tick: 0.002 at 500 Hz); copied "
                     "to meta.yaml (docs/data-format.md). Omit when the torques are measured.")

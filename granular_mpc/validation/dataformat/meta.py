@@ -20,6 +20,9 @@ SCHEMA_VERSION = 1
 SUFFIXES = {"csv": ".csv", "parquet": ".parquet"}
 """Trial file format → file name suffix."""
 
+#: How long a logged torque command is held after its stamp [s] (a zero-order hold; at
+#: most 0.1 s — a 10 Hz controller)
+TorqueHold = Annotated[float, Field(ge=0.0, le=0.1)]
 TrialName = Annotated[str, StringConstraints(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$",
                                              max_length=200)]
 
@@ -104,8 +107,8 @@ class DatasetMeta(StrictModel):
     trials: dict[TrialName, TrialMeta] = Field(min_length=1,
                                                description="Trial name → trial entry.")
     description: str = Field("", description="Free-form notes on the data set.")
-    torque_hold_s: float | None = Field(
-        None, ge=0.0, le=0.1,
+    torque_hold_s: TorqueHold | None = Field(
+        None,
         description="The tau_* columns are commands held for this long after their time stamp "
                     "(a zero-order hold: 0.002 for a 500 Hz controller that logs its command "
                     "at the tick) [s]. A held torque acts, on average, half the hold after its "
@@ -139,5 +142,5 @@ class DatasetMeta(StrictModel):
         return self
 
 
-__all__ = ["SCHEMA_VERSION", "SUFFIXES", "TrialName", "file_name_error", "shared_files",
+__all__ = ["SCHEMA_VERSION", "SUFFIXES", "TorqueHold", "TrialName", "file_name_error", "shared_files",
            "TrialMeta", "GeneratorMeta", "DatasetMeta"]

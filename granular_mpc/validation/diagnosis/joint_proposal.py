@@ -47,9 +47,9 @@ from ...columns import (BASE_ANGULAR_VELOCITY, BASE_LINEAR_VELOCITY, BASE_POSITI
                         BASE_QUATERNION, FOOT_SIDES, GRF_COLUMNS, STANCE, joint_columns)
 from ...robot.model import Biped
 from ...rotations import matrix_from_quat_xyzw, xyzw_from_wxyz
+from .held_torque import delayed, hold_delay
 from .proposal_records import JointFit, JointTerm, change_text
 from .sparse import SparseFit, sparse_fit
-from .held_torque import delayed, hold_delay
 
 #: Savitzky–Golay window [s] and order of the derivative and of the matching smoothing
 SMOOTH_WINDOW = 0.042
@@ -415,7 +415,7 @@ def propose_joint_terms(dataset, biped: Biped, rate_hz: float, *, seed: int = 0
     terms, fits = fit_joint_terms(s, biped.joint_names, seed=seed)
     held = (f" The torques are commands held {1e3 * hold:g} ms (meta.yaml torque_hold_s): "
             f"τ(t − {1e3 * s.torque_delay:g} ms) acts at t." if hold else
-            " The torques act at their stamps (meta.yaml declares no torque_hold_s).")
+            " The torques act at their stamps (meta.yaml declares no torque hold).")
     return terms, fits, JOINT_NOTE + f" {s.n} rows." + held
 
 
