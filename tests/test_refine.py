@@ -221,21 +221,23 @@ class _Pool:
                 for k, v in variants.items()}
 
 
-def _rejudge_case(truth, monkeypatch):
+def _windows():
+    """Six fake stance windows with a knee angle and a vertical force."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(0)
+    return [SimpleNamespace(index=i, meas={"q_left_knee": rng.normal(0, 1e-3, 30),
+                                           "grf_z": rng.normal(50, 1, 30)})
+            for i in range(6)]
+
+
+def _fake_refits(monkeypatch, pool, fitted) -> list:
+    """Replace the replay refit by the fake pool's predictions at ``fitted``; returns the
+    list of refitted selections."""
     from types import SimpleNamespace
 
     import granular_mpc.validation.diagnosis.refine as refine_module
-    from granular_mpc.effects import effect_info
-    from granular_mpc.validation.diagnosis.refine import rejudge_earlier
 
-    rng = np.random.default_rng(0)
-    windows = [SimpleNamespace(index=i, meas={"q_left_knee": rng.normal(0, 1e-3, 30),
-                                              "grf_z": rng.normal(50, 1, 30)})
-               for i in range(6)]
-    pool = _Pool(windows, truth)
-    infos = {n: effect_info(n) for n in ("force_sensor_bias", "joint_friction")}
-    fitted = {"force_sensor_bias": infos["force_sensor_bias"].resolve_params({"bias_z": 3.0}),
-              "joint_friction": infos["joint_friction"].resolve_params({"coulomb": 0.1})}
     refits = []
 
     def refit(problem, pool_, res, candidates, sel, start, nuisance, *, iterations):
@@ -244,6 +246,21 @@ def _rejudge_case(truth, monkeypatch):
                                preds=pool.preds(set(sel)))
 
     monkeypatch.setattr(refine_module, "refine_replays", refit)
+    return refits
+
+
+def _rejudge_case(truth, monkeypatch):
+    from types import SimpleNamespace
+
+    from granular_mpc.effects import effect_info
+    from granular_mpc.validation.diagnosis.refine import rejudge_earlier
+
+    windows = _windows()
+    pool = _Pool(windows, truth)
+    infos = {n: effect_info(n) for n in ("force_sensor_bias", "joint_friction")}
+    fitted = {"force_sensor_bias": infos["force_sensor_bias"].resolve_params({"bias_z": 3.0}),
+              "joint_friction": infos["joint_friction"].resolve_params({"coulomb": 0.1})}
+    refits = _fake_refits(monkeypatch, pool, fitted)
     problem = SimpleNamespace(windows=windows, channels=["q_left_knee", "grf_z"])
     res = SimpleNamespace(base=SimpleNamespace(theta={}),
                           sigma={"q_left_knee": 1e-3, "grf_z": 1.0})
@@ -273,3 +290,101 @@ def test_an_earlier_addition_that_the_final_model_does_not_need_is_dropped(monke
                                              monkeypatch)
     assert kept == ["force_sensor_bias", "joint_friction"] and refits == []
     assert [(a.accepted, a.dropped) for a in acceptance] == [(True, False)]
+
+
+class _ExchangePool:
+    """Replays of a fake model with two channels: ``q_left_knee`` is explained fully by
+    ``knee`` (the true term), half by ``proxy``; ``grf_z`` by ``force_sensor_bias``, which
+    hurts it when ``bias_hurts_with`` is in the model too."""
+
+    def __init__(self, windows, knee, proxy, bias_hurts_with=""):
+        self.windows, self.knee, self.proxy = windows, knee, proxy
+        self.bias_hurts_with = bias_hurts_with
+
+    def preds(self, effects):
+        out = []
+        for w in self.windows:
+            p = {c: np.array(v, float) for c, v in w.meas.items()}
+            miss = 0.0 if self.knee in effects else (0.01 if self.proxy in effects else 0.02)
+            p["q_left_knee"] = p["q_left_knee"] + miss * (1.0 + 0.1 * w.index)
+            bias = "force_sensor_bias" in effects
+            hurt = bias and self.bias_hurts_with in effects
+            p["grf_z"] = p["grf_z"] + (3.0 if hurt else 0.0 if bias else 2.0)
+            out.append(p)
+        return out
+
+    def run(self, variants):
+        return {k: self.preds({i.name for i, _ in (*v.joints, *v.sensors)}
+                              | {t.split(".")[0] for t in v.theta if "." in t})
+                for k, v in variants.items()}
+
+
+def _exchange_case(knee, proxy, monkeypatch, bias_hurts_with=""):
+    """joint_friction (added first) and force_sensor_bias are the model; cohesion lost to
+    joint_friction when joint_friction was added. ``knee``: the effect that explains
+    q_left_knee fully, ``proxy``: half."""
+    from types import SimpleNamespace
+
+    import granular_mpc.validation.diagnosis.refine as refine_module
+    from granular_mpc.effects import effect_info
+    from granular_mpc.validation.diagnosis.refine import exchange_terms
+
+    windows = _windows()
+    pool = _ExchangePool(windows, knee, proxy, bias_hurts_with)
+    names = ("joint_friction", "force_sensor_bias", "cohesion")
+    infos = {n: effect_info(n) for n in names}
+    fitted = {"joint_friction": infos["joint_friction"].resolve_params({"coulomb": 0.1}),
+              "force_sensor_bias": infos["force_sensor_bias"].resolve_params({"bias_z": 3.0}),
+              "cohesion": infos["cohesion"].resolve_params({"suction": 2000.0})}
+    refits = _fake_refits(monkeypatch, pool, fitted)
+    def rss(problem, candidates, res, scr, preds, fitted_, sel):
+        """A stand-in AICc: the residual sum of squares over σ, + 2 per term."""
+        y = sum(float(np.sum(((p[c] - w.meas[c]) / res.sigma[c]) ** 2))
+                for w, p in zip(windows, preds) for c in ("q_left_knee", "grf_z"))
+        return y + 2.0 * len(sel), y
+
+    monkeypatch.setattr(refine_module, "refined_aicc", rss)
+    problem = SimpleNamespace(windows=windows, channels=["q_left_knee", "grf_z"])
+    res = SimpleNamespace(base=SimpleNamespace(theta={}),
+                          sigma={"q_left_knee": 1e-3, "grf_z": 1.0})
+    cands = SimpleNamespace(infos=infos, columns={n: () for n in infos})
+    selected = ["joint_friction", "force_sensor_bias"]
+    acceptance = []
+    out = exchange_terms(problem, pool, res, None, cands, selected, fitted, {},
+                         pool.preds(set(selected)),
+                         {"joint_friction": [("cohesion", fitted["cohesion"])]},
+                         acceptance, 2)
+    return out, acceptance, refits
+
+
+def test_a_proxy_added_before_the_rest_of_the_model_is_exchanged_for_the_term_it_beat(
+        monkeypatch):
+    """joint_friction beat cohesion when it was added; against the final model (with the
+    force-sensor bias) cohesion explains the knee fully: it takes joint_friction's place,
+    judged with the bias, and the bias judged again with it."""
+    out, acceptance, refits = _exchange_case("cohesion", "joint_friction", monkeypatch)
+    assert out is not None
+    sel, fit = out
+    assert sel == ["cohesion", "force_sensor_bias"] and set(fit.fitted) == set(sel)
+    assert refits == [("cohesion", "force_sensor_bias")]
+    judged = {(a.effect, a.given): a for a in acceptance}
+    assert judged[("cohesion", ("force_sensor_bias",))].accepted
+    assert judged[("force_sensor_bias", ("cohesion",))].accepted
+    gone = judged[("joint_friction", ("force_sensor_bias",))]
+    assert gone.dropped and not gone.accepted
+    assert gone.reasons[0].startswith("exchanged for cohesion")
+
+
+def test_no_exchange_when_the_term_it_beat_fits_worse_or_breaks_another_term(monkeypatch):
+    """The term joint_friction beat explains less (the AICc rises): nothing is judged, no
+    exchange. It explains more but the bias, judged again beside it, makes grf_z worse: no
+    exchange either (every term of the exchanged model must pass)."""
+    out, acceptance, refits = _exchange_case("joint_friction", "cohesion", monkeypatch)
+    assert out is None and acceptance == [] and refits == [("cohesion", "force_sensor_bias")]
+
+    out, acceptance, _ = _exchange_case("cohesion", "joint_friction", monkeypatch,
+                                        bias_hurts_with="cohesion")
+    assert out is None
+    bias = [a for a in acceptance if a.effect == "force_sensor_bias"]
+    assert bias and not bias[0].accepted and bias[0].given == ("cohesion",)
+    assert not any(a.dropped for a in acceptance)

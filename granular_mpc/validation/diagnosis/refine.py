@@ -3,8 +3,10 @@ screening's indistinguishable partners of the leading one (significant or not), 
 refined by the same number of Gauss–Newton replay iterations; the one with the lowest AICc
 of its replayed residual that passes honest acceptance (:mod:`.acceptance`: its replays
 improve its credited channels, its coefficient is physical) is added, the others are
-re-tested conditionally on the refined model — then the final ranking and the refined
-model's held-out statistics (``docs/validation.md`` §3.3)."""
+re-tested conditionally on the refined model; then every earlier addition is judged again
+against the final model (:func:`rejudge_earlier`) and each contest is run again against it
+(:func:`exchange_terms`) — then the final ranking and the refined model's held-out
+statistics (``docs/validation.md`` §3.3)."""
 
 from __future__ import annotations
 
@@ -73,6 +75,21 @@ def _values(fitted: Mapping[str, Mapping[str, float]], candidates: CandidateSet,
 
 def _neutral(candidates: CandidateSet, selected) -> dict[str, float]:
     return {c.key: c.neutral for s in selected for c in candidates.columns[s]}
+
+
+def refined_aicc(problem: Problem, candidates: CandidateSet, res: Residuals, scr: Screening,
+                 preds: Sequence[dict], fitted: Mapping[str, Mapping[str, float]],
+                 selected: Sequence[str]) -> tuple[float, float]:
+    """AICc and weighted RSS of the stance-averaged residual of a refined (replayed) model:
+    ``selected`` at ``fitted``, per-window replay outputs ``preds``."""
+    sel = list(selected)
+    R_ = residual_cube(problem.windows, preds, problem.channels, problem.edges)
+    geo = res.geometry
+    gy = geo.shifted(_values(fitted, candidates, sel), _neutral(candidates, sel)).y
+    d_ = scr.builder.build(R_, {}, GeometryRows(gy, geo.sigma, {}), {}, []).systematic
+    y_ = d_.y[np.isfinite(d_.y)]
+    k_ = len(scr.base_keys) + sum(len(candidates.columns[s]) for s in sel)
+    return aicc(float(y_ @ y_), y_.size * d_.n_eff_factor, k_), float(y_ @ y_)
 
 
 def contenders_for(stats: Sequence[CandidateStats], selected: Sequence[str],
@@ -212,6 +229,61 @@ def rejudge_earlier(problem: Problem, pool: ReplayPool, res: Residuals,
     return selected, fitted, dict(theta), preds, refit
 
 
+def exchange_terms(problem: Problem, pool: ReplayPool, res: Residuals, scr: Screening,
+                   candidates: CandidateSet, selected: Sequence[str],
+                   fitted: Mapping[str, Mapping[str, float]], theta: Mapping[str, float],
+                   preds: Sequence[dict],
+                   rivals_of: Mapping[str, Sequence[tuple[str, Mapping[str, float]]]],
+                   acceptance: list[Acceptance], refine_iterations: int
+                   ) -> tuple[list[str], GaussNewtonFit] | None:
+    """The exchange step of a stepwise selection: each added effect A competed, when it was
+    added, with the other refined contenders against the model *of that moment*; a later
+    addition may change that contest (a joint friction that beat a stiction while a depth
+    hardening was still unmodelled, because it also took part of the hardening's force
+    error). So, against the final model, each contender B that A beat (``rivals_of[A]``:
+    name and its refined parameters then) takes A's place, is refined with the others, and
+    replaces A when the model with B has the lower refined AICc (:func:`refined_aicc`) and
+    passes the acceptance — B's own replays and every other term's given B (:func:`judge`).
+    One exchange at most (the first found, in the order of ``selected`` and of A's contest);
+    each judgement is appended to ``acceptance``; A's entry says it was exchanged.
+
+    Returns:
+        The new selection (B in A's place) and its refined fit; None: no exchange.
+    """
+    windows, channels = problem.windows, problem.channels
+    current, _ = refined_aicc(problem, candidates, res, scr, preds, fitted, selected)
+    for i, a in enumerate(selected):
+        others = [s for s in selected if s != a]
+        for b, b_params in rivals_of.get(a, ()):
+            if b in selected:
+                continue
+            sel = list(selected[:i]) + [b] + list(selected[i + 1:])
+            start = _values(fitted, candidates, others)
+            start.update({c.key: float(b_params[c.param]) for c in candidates.columns[b]
+                          if c.param in b_params})
+            fit = refine_replays(problem, pool, res, candidates, sel, start,
+                                 nuisance_columns(theta), iterations=refine_iterations)
+            score, _ = refined_aicc(problem, candidates, res, scr, fit.preds, fit.fitted, sel)
+            if not score < current:
+                continue
+            judged = []
+            for name in sel:
+                rest = [s for s in sel if s != name]
+                before = replay_with(pool, res, candidates, fit.fitted, fit.theta, rest)
+                judged.append(replace(judge(windows, channels, res.sigma,
+                                            candidates.infos[name], fit.fitted[name], before,
+                                            fit.preds), given=tuple(rest)))
+            acceptance.extend(judged)
+            if not all(j.accepted for j in judged):
+                continue
+            why = (f"exchanged for {b}: the model with {b} in its place has the lower refined "
+                   f"AICc ({current:.1f} → {score:.1f}) and passes the acceptance")
+            acceptance.append(Acceptance(a, False, {}, (), (why,), given=tuple(others),
+                                         dropped=True))
+            return sel, fit
+    return None
+
+
 def judging_order(scored: Sequence[tuple[float, str]], rivals: Collection[str]) -> list[str]:
     """The refined contenders the acceptance judges, by refined AICc (``scored``: (AICc,
     effect)): every contender that is not a rival, and a rival only when its AICc is
@@ -237,7 +309,6 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
     geo = res.geometry
     base_keys = list(scr.base_keys)
     cand_keys = candidates.keys
-    n_nuis = len(base_keys)
     selected: list[str] = []
     fitted: Mapping[str, Mapping[str, float]] = {}
     theta_final = dict(cal.theta)
@@ -249,13 +320,7 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
     conditional: dict[str, list[ConditionalResult]] = {r.effect: [] for r in scr.ranking}
 
     def refined_score(fit: GaussNewtonFit, sel: list[str]) -> tuple[float, float]:
-        """AICc of the stance-averaged weighted residual of a refined (replayed) model."""
-        R_ = residual_cube(windows, fit.preds, channels, edges)
-        gy = geo.shifted(_values(fit.fitted, candidates, sel), _neutral(candidates, sel)).y
-        d_ = scr.builder.build(R_, {}, GeometryRows(gy, geo.sigma, {}), {}, []).systematic
-        y_ = d_.y[np.isfinite(d_.y)]
-        k_ = n_nuis + sum(len(candidates.columns[s]) for s in sel)
-        return aicc(float(y_ @ y_), y_.size * d_.n_eff_factor, k_), float(y_ @ y_)
+        return refined_aicc(problem, candidates, res, scr, fit.preds, fit.fitted, sel)
 
     def conditional_test(fit: GaussNewtonFit) -> list[CandidateStats]:
         """The candidates not added, re-tested against the current model (``selected`` at
@@ -285,6 +350,7 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
         return out
 
     twins = {t.effect for t in scr.strength_twins}
+    rivals_of: dict[str, list[tuple[str, dict[str, float]]]] = {}
     for _ in range(1 + MAX_DROPS):     # a drop (rejudge_earlier) makes room again
         while len(selected) < max_effects:
             rejected = rejected_against(acceptance, selected)
@@ -331,6 +397,8 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
             best, fit = chosen
             selected.append(best.effect)
             fitted, theta_final, final_preds = fit.fitted, dict(fit.theta), fit.preds
+            rivals_of[best.effect] = [(t[1].effect, dict(t[2].fitted[t[1].effect]))
+                                      for t in tried if t[1].effect != best.effect]
             step = dict(added=best.effect, contenders=tuple(t[1].effect for t in tried),
                         contender_aicc=tuple(t[0] for t in tried), refine=fit.log)
             if len(selected) >= max_effects:
@@ -347,6 +415,18 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
         if refit is None:
             break
         stats = conditional_test(refit)   # room again: the rest against the reduced model
+    if len(selected) >= 2:
+        swap = exchange_terms(problem, pool, res, scr, candidates, selected, fitted,
+                              theta_final, final_preds, rivals_of, acceptance,
+                              refine_iterations)
+        if swap is not None:
+            selected, fit = swap
+            fitted, theta_final, final_preds = fit.fitted, dict(fit.theta), fit.preds
+            for name in selected:
+                refined_fits[name].append(RefinedFit(
+                    tuple(s for s in selected if s != name),
+                    *refined_aicc(problem, candidates, res, scr, fit.preds, fit.fitted,
+                                  selected), dict(fit.fitted[name])))
     return Refinement(tuple(selected), fitted, theta_final, tuple(final_preds),
                       _final_ranking(scr.ranking, selected, fitted, refined_fits, conditional,
                                      acceptance),
@@ -402,6 +482,6 @@ def _refined_heldout(problem, candidates, res, scr, selected, fitted,
         REFINED_HELDOUT_NOTE)
 
 
-__all__ = ["Refinement", "refine", "contenders_for", "is_rival", "judging_order",
+__all__ = ["Refinement", "refine", "refined_aicc", "exchange_terms", "contenders_for", "is_rival", "judging_order",
            "rejected_against", "rejudge_earlier", "replay_with", "MAX_DROPS",
            "without_term", "SECANT_BOUNDS"]
