@@ -422,11 +422,11 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
         if swap is not None:
             selected, fit = swap
             fitted, theta_final, final_preds = fit.fitted, dict(fit.theta), fit.preds
+            score, rss = refined_aicc(problem, candidates, res, scr, fit.preds, fit.fitted,
+                                      selected)
             for name in selected:
-                refined_fits[name].append(RefinedFit(
-                    tuple(s for s in selected if s != name),
-                    *refined_aicc(problem, candidates, res, scr, fit.preds, fit.fitted,
-                                  selected), dict(fit.fitted[name])))
+                refined_fits[name].append(RefinedFit(tuple(s for s in selected if s != name),
+                                                     score, rss, dict(fit.fitted[name])))
     return Refinement(tuple(selected), fitted, theta_final, tuple(final_preds),
                       _final_ranking(scr.ranking, selected, fitted, refined_fits, conditional,
                                      acceptance),
@@ -482,6 +482,6 @@ def _refined_heldout(problem, candidates, res, scr, selected, fitted,
         REFINED_HELDOUT_NOTE)
 
 
-__all__ = ["Refinement", "refine", "refined_aicc", "exchange_terms", "contenders_for", "is_rival", "judging_order",
-           "rejected_against", "rejudge_earlier", "replay_with", "MAX_DROPS",
+__all__ = ["Refinement", "refine", "refined_aicc", "exchange_terms", "contenders_for",
+           "is_rival", "judging_order", "rejected_against", "rejudge_earlier", "replay_with", "MAX_DROPS",
            "without_term", "SECANT_BOUNDS"]
