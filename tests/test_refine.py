@@ -243,7 +243,7 @@ def _fake_refits(monkeypatch, pool, fitted) -> list:
     def refit(problem, pool_, res, candidates, sel, start, nuisance, *, iterations):
         refits.append(tuple(sel))
         return SimpleNamespace(fitted={s: fitted[s] for s in sel}, theta={},
-                               preds=pool.preds(set(sel)))
+                               preds=pool.preds(set(sel)), log=())
 
     monkeypatch.setattr(refine_module, "refine_replays", refit)
     return refits
@@ -364,8 +364,10 @@ def test_a_proxy_added_before_the_rest_of_the_model_is_exchanged_for_the_term_it
     judged with the bias, and the bias judged again with it."""
     out, acceptance, refits = _exchange_case("cohesion", "joint_friction", monkeypatch)
     assert out is not None
-    sel, fit = out
+    sel, fit, step = out
     assert sel == ["cohesion", "force_sensor_bias"] and set(fit.fitted) == set(sel)
+    assert step.added == "cohesion" and step.contenders == ("cohesion", "joint_friction")
+    assert step.contender_aicc[0] < step.contender_aicc[1]
     assert refits == [("cohesion", "force_sensor_bias")]
     judged = {(a.effect, a.given): a for a in acceptance}
     assert judged[("cohesion", ("force_sensor_bias",))].accepted

@@ -184,3 +184,32 @@ def test_a_significant_candidate_refused_by_its_replays_is_not_no_effect():
         q = decide(VerdictInputs((), (quiet,), None, _empty()))
         assert q.status == "no_significant_missing_effect"
         assert "no candidate passes the held-out" in q.text
+
+
+def test_an_addition_that_barely_won_its_contest_is_not_called_the_answer():
+    """A contender not added whose refined AICc is less than DECISIVE_DELTA_AICC above the
+    winner's, in the contest that added it, is a near tie: the winner is only the closest
+    proxy, and the statement names the tie; a contender at the decisive margin, or one
+    added later, is not a tie."""
+    from granular_mpc.validation.diagnosis.result import SelectionStep
+    from granular_mpc.validation.diagnosis.verdict import DECISIVE_DELTA_AICC
+
+    r = _ranked("encoder_offset")
+    close = 305.1 + DECISIVE_DELTA_AICC - 2.8
+
+    def inputs(selected, aicc):
+        step = SelectionStep("encoder_offset", ("encoder_offset", "joint_friction", "torque_gain"),
+                             (305.1, aicc, 343.6), ())
+        return VerdictInputs(selected, (r,), None, _empty(), steps=(step,))
+
+    tie = inputs(("encoder_offset",), close)
+    assert tie.near_ties("encoder_offset") == (("joint_friction", close - 305.1),)
+    best = best_candidate_statement(tie)
+    assert best.startswith("encoder_offset is only the closest proxy")
+    assert "barely prefer it to joint_friction (refined AICc +7.2" in best
+    assert "torque_gain" not in best
+    decisive = inputs(("encoder_offset",), 305.1 + DECISIVE_DELTA_AICC)
+    assert decisive.near_ties("encoder_offset") == ()
+    assert best_candidate_statement(decisive).startswith("encoder_offset is the answer")
+    both = inputs(("encoder_offset", "joint_friction"), close)
+    assert both.near_ties("encoder_offset") == ()

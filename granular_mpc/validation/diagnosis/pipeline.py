@@ -169,7 +169,7 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     timing["force_leftover"] = _time.perf_counter() - t0
     vin = VerdictInputs(ref.selected, ref.ranking, ref.refined_heldout, loc.after, loc.before,
                         ref.acceptance, scr.indistinguishable, coverage.indistinguishable,
-                        scr.strength_twins, force_left)
+                        scr.strength_twins, force_left, ref.steps)
     verdict = decide(vin)
     best = best_candidate_statement(vin)
     verdict, proposal = pointed_proposal(verdict, best, proposal, out, str(data_dir))

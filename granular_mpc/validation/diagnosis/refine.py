@@ -235,7 +235,7 @@ def exchange_terms(problem: Problem, pool: ReplayPool, res: Residuals, scr: Scre
                    preds: Sequence[dict],
                    rivals_of: Mapping[str, Sequence[tuple[str, Mapping[str, float]]]],
                    acceptance: list[Acceptance], refine_iterations: int
-                   ) -> tuple[list[str], GaussNewtonFit] | None:
+                   ) -> tuple[list[str], GaussNewtonFit, SelectionStep] | None:
     """The exchange step of a stepwise selection: each added effect A competed, when it was
     added, with the other refined contenders against the model *of that moment*; a later
     addition may change that contest (a joint friction that beat a stiction while a depth
@@ -248,7 +248,9 @@ def exchange_terms(problem: Problem, pool: ReplayPool, res: Residuals, scr: Scre
     each judgement is appended to ``acceptance``; A's entry says it was exchanged.
 
     Returns:
-        The new selection (B in A's place) and its refined fit; None: no exchange.
+        The new selection (B in A's place), its refined fit and the contest as a selection
+        step (B added; contenders B and A, the AICc of the model with each); None: no
+        exchange.
     """
     windows, channels = problem.windows, problem.channels
     current, _ = refined_aicc(problem, candidates, res, scr, preds, fitted, selected)
@@ -280,7 +282,7 @@ def exchange_terms(problem: Problem, pool: ReplayPool, res: Residuals, scr: Scre
                    f"AICc ({current:.1f} → {score:.1f}) and passes the acceptance")
             acceptance.append(Acceptance(a, False, {}, (), (why,), given=tuple(others),
                                          dropped=True))
-            return sel, fit
+            return sel, fit, SelectionStep(b, (b, a), (score, current), fit.log)
     return None
 
 
@@ -420,7 +422,8 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
                               theta_final, final_preds, rivals_of, acceptance,
                               refine_iterations)
         if swap is not None:
-            selected, fit = swap
+            selected, fit, step = swap
+            steps.append(step)
             fitted, theta_final, final_preds = fit.fitted, dict(fit.theta), fit.preds
             score, rss = refined_aicc(problem, candidates, res, scr, fit.preds, fit.fitted,
                                       selected)

@@ -16,12 +16,17 @@ from .acceptance_records import Acceptance, ForceLeftover, force_leftover_senten
 from .localise import where_summary
 from .localization_records import Localization
 from .ranking_records import Ranked
-from .result import IndistinguishablePair, RefinedHeldout, Verdict
+from .result import IndistinguishablePair, RefinedHeldout, SelectionStep, Verdict
 from .strength import StrengthTwin
-from .thresholds import MAJOR_BIAS, PRACTICAL_BIAS
+from .thresholds import MAJOR_BIAS, MAX_DELTA_AICC, PRACTICAL_BIAS
 
 #: cells named in a ``partially_explained`` verdict
 LISTED_REMAINING = 4
+#: a contender whose refined AICc is less than this above the added effect's, in the
+#: contest that added it, is a near tie: the added effect is not called the answer. The
+#: screening's "strong evidence" step (Burnham–Anderson: ΔAICc > 10, essentially no
+#: support for the other model), not tuned (docs/validation.md §3.3)
+DECISIVE_DELTA_AICC = -MAX_DELTA_AICC
 
 
 @dataclass(frozen=True)
@@ -43,6 +48,8 @@ class VerdictInputs:
             mismatch explains their evidence as well (:mod:`.strength`).
         force_left: force axes whose equation error while the sole sinks the additions
             leave unexplained (:mod:`.force_leftover`).
+        steps: the selection's contests (:class:`~.result.SelectionStep`: the refined
+            contenders and their AICc, the exchange included).
     """
 
     selected: tuple[str, ...]
@@ -55,6 +62,19 @@ class VerdictInputs:
     channel_twins: tuple[tuple[str, str], ...] = ()
     strength_twins: tuple[StrengthTwin, ...] = ()
     force_left: tuple[ForceLeftover, ...] = ()
+    steps: tuple[SelectionStep, ...] = ()
+
+    def near_ties(self, name: str) -> tuple[tuple[str, float], ...]:
+        """The contenders of the last contest ``name`` won that were not added and whose
+        refined AICc is less than :data:`DECISIVE_DELTA_AICC` above its own: (effect,
+        ΔAICc), closest first."""
+        step = next((s for s in reversed(self.steps) if s.added == name), None)
+        if step is None:
+            return ()
+        aic = dict(zip(step.contenders, step.contender_aicc))
+        ties = [(e, a - aic[name]) for e, a in aic.items()
+                if e != name and e not in self.selected and a - aic[name] < DECISIVE_DELTA_AICC]
+        return tuple(sorted(ties, key=lambda t: t[1]))
 
     def twins_of(self, name: str) -> tuple[str, ...]:
         """The candidates the measured channels cannot tell from an addition of ``name``."""
@@ -278,6 +298,11 @@ def best_candidate_statement(v: VerdictInputs) -> str:
             why.append(force_leftover_sentence(v.force_left))
         if twins:
             why.append(f"the data cannot tell it from {', '.join(twins)}")
+        ties = v.near_ties(name)
+        if ties:
+            why.append("the replays barely prefer it to " + ", ".join(
+                f"{e} (refined AICc {d:+.1f}; {DECISIVE_DELTA_AICC:g} would be decisive)"
+                for e, d in ties))
         if v.twins_of(name):
             why.append("ambiguous: the measured channels cannot tell it from "
                        f"{', '.join(v.twins_of(name))}, which cannot be assessed without "
