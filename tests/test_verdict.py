@@ -189,8 +189,8 @@ def test_a_significant_candidate_refused_by_its_replays_is_not_no_effect():
 def test_an_addition_that_barely_won_its_contest_is_not_called_the_answer():
     """A contender not added whose refined AICc is less than DECISIVE_DELTA_AICC above the
     winner's, in the contest that added it, is a near tie: the winner is only the closest
-    proxy, and the statement names the tie; a contender at the decisive margin, or one
-    added later, is not a tie."""
+    proxy, and the statement names the tie; a contender at the decisive margin, one added
+    later, or one that fitted better but was refused by the acceptance is not a tie."""
     from granular_mpc.validation.diagnosis.result import SelectionStep
     from granular_mpc.validation.diagnosis.verdict import DECISIVE_DELTA_AICC
 
@@ -213,3 +213,7 @@ def test_an_addition_that_barely_won_its_contest_is_not_called_the_answer():
     assert best_candidate_statement(decisive).startswith("encoder_offset is the answer")
     both = inputs(("encoder_offset", "joint_friction"), close)
     assert both.near_ties("encoder_offset") == ()
+    # a contender that fitted better lost on the acceptance, not on the fit: no tie
+    refused = inputs(("encoder_offset",), 305.1 - 50.0)
+    assert refused.near_ties("encoder_offset") == ()
+    assert best_candidate_statement(refused).startswith("encoder_offset is the answer")

@@ -66,14 +66,16 @@ class VerdictInputs:
 
     def near_ties(self, name: str) -> tuple[tuple[str, float], ...]:
         """The contenders of the last contest ``name`` won that were not added and whose
-        refined AICc is less than :data:`DECISIVE_DELTA_AICC` above its own: (effect,
-        ΔAICc), closest first."""
+        refined AICc is at or above its own by less than :data:`DECISIVE_DELTA_AICC`:
+        (effect, ΔAICc), closest first. A contender *below* it lost on the acceptance, not
+        on the fit; the verdict names it with its reasons (:func:`rejected_sentence`)."""
         step = next((s for s in reversed(self.steps) if s.added == name), None)
         if step is None:
             return ()
         aic = dict(zip(step.contenders, step.contender_aicc))
         ties = [(e, a - aic[name]) for e, a in aic.items()
-                if e != name and e not in self.selected and a - aic[name] < DECISIVE_DELTA_AICC]
+                if e != name and e not in self.selected
+                and 0.0 <= a - aic[name] < DECISIVE_DELTA_AICC]
         return tuple(sorted(ties, key=lambda t: t[1]))
 
     def twins_of(self, name: str) -> tuple[str, ...]:
