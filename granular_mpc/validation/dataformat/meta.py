@@ -142,5 +142,5 @@ class DatasetMeta(StrictModel):
         return self
 
 
-__all__ = ["SCHEMA_VERSION", "SUFFIXES", "TorqueHold", "TrialName", "file_name_error", "shared_files",
-           "TrialMeta", "GeneratorMeta", "DatasetMeta"]
+__all__ = ["SCHEMA_VERSION", "SUFFIXES", "TorqueHold", "TrialName", "file_name_error",
+           "shared_files", "TrialMeta", "GeneratorMeta", "DatasetMeta"]

@@ -181,6 +181,19 @@ def without_term(pool: ReplayPool, res: Residuals, candidates: CandidateSet,
     return replay_with(pool, res, candidates, fit.fitted, fit.theta, previous)
 
 
+def judge_in_model(problem: Problem, pool: ReplayPool, res: Residuals,
+                   candidates: CandidateSet, name: str, selected: Sequence[str],
+                   fitted: Mapping[str, Mapping[str, float]], theta: Mapping[str, float],
+                   preds: Sequence[dict]) -> Acceptance:
+    """The acceptance of ``name`` inside the model ``selected`` at ``fitted`` and θ
+    ``theta`` (per-window replay outputs ``preds``): that model against itself without
+    ``name`` (the others at the same values), ``given`` the others."""
+    others = [s for s in selected if s != name]
+    before = replay_with(pool, res, candidates, fitted, theta, others)
+    return replace(judge(problem.windows, problem.channels, res.sigma, candidates.infos[name],
+                         fitted[name], before, preds), given=tuple(others))
+
+
 def rejected_against(acceptance: Sequence[Acceptance], selected: Sequence[str]) -> set[str]:
     """The candidates the acceptance rejected against the model with exactly ``selected``
     added. A rejection holds against the model it was judged on — its replays, its
@@ -210,13 +223,11 @@ def rejudge_earlier(problem: Problem, pool: ReplayPool, res: Residuals,
         The effects kept, their refined parameters, θ, per-window replay outputs, and the
         refit without the dropped effects (None: nothing dropped).
     """
-    windows, channels = problem.windows, problem.channels
     refit = None
     for name in list(selected[:-1]):
         others = [s for s in selected if s != name]
-        before = replay_with(pool, res, candidates, fitted, theta, others)
-        acc = replace(judge(windows, channels, res.sigma, candidates.infos[name],
-                            fitted[name], before, preds), given=tuple(others))
+        acc = judge_in_model(problem, pool, res, candidates, name, selected, fitted, theta,
+                             preds)
         if acc.accepted:
             acceptance.append(acc)
             continue
@@ -252,7 +263,6 @@ def exchange_terms(problem: Problem, pool: ReplayPool, res: Residuals, scr: Scre
         step (B added; contenders B and A, the AICc of the model with each); None: no
         exchange.
     """
-    windows, channels = problem.windows, problem.channels
     current, _ = refined_aicc(problem, candidates, res, scr, preds, fitted, selected)
     for i, a in enumerate(selected):
         others = [s for s in selected if s != a]
@@ -268,13 +278,8 @@ def exchange_terms(problem: Problem, pool: ReplayPool, res: Residuals, scr: Scre
             score, _ = refined_aicc(problem, candidates, res, scr, fit.preds, fit.fitted, sel)
             if not score < current:
                 continue
-            judged = []
-            for name in sel:
-                rest = [s for s in sel if s != name]
-                before = replay_with(pool, res, candidates, fit.fitted, fit.theta, rest)
-                judged.append(replace(judge(windows, channels, res.sigma,
-                                            candidates.infos[name], fit.fitted[name], before,
-                                            fit.preds), given=tuple(rest)))
+            judged = [judge_in_model(problem, pool, res, candidates, name, sel, fit.fitted,
+                                     fit.theta, fit.preds) for name in sel]
             acceptance.extend(judged)
             if not all(j.accepted for j in judged):
                 continue
@@ -320,9 +325,6 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
     acceptance: list[Acceptance] = []
     refined_fits: dict[str, list[RefinedFit]] = {r.effect: [] for r in scr.ranking}
     conditional: dict[str, list[ConditionalResult]] = {r.effect: [] for r in scr.ranking}
-
-    def refined_score(fit: GaussNewtonFit, sel: list[str]) -> tuple[float, float]:
-        return refined_aicc(problem, candidates, res, scr, fit.preds, fit.fitted, sel)
 
     def conditional_test(fit: GaussNewtonFit) -> list[CandidateStats]:
         """The candidates not added, re-tested against the current model (``selected`` at
@@ -375,7 +377,8 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
                 fit = refine_replays(problem, pool, res, candidates, sel, start,
                                      nuisance_columns(theta_final),
                                      iterations=refine_iterations)
-                score, rss = refined_score(fit, sel)
+                score, rss = refined_aicc(problem, candidates, res, scr, fit.preds,
+                                          fit.fitted, sel)
                 tried.append((score, r, fit))
                 refined_fits[r.effect].append(RefinedFit(tuple(selected), score, rss,
                                                          dict(fit.fitted[r.effect])))
@@ -485,6 +488,6 @@ def _refined_heldout(problem, candidates, res, scr, selected, fitted,
         REFINED_HELDOUT_NOTE)
 
 
-__all__ = ["Refinement", "refine", "refined_aicc", "exchange_terms", "contenders_for",
-           "is_rival", "judging_order", "rejected_against", "rejudge_earlier", "replay_with", "MAX_DROPS",
-           "without_term", "SECANT_BOUNDS"]
+__all__ = ["Refinement", "refine", "refined_aicc", "exchange_terms", "judge_in_model",
+           "contenders_for", "is_rival", "judging_order", "rejected_against",
+           "rejudge_earlier", "replay_with", "MAX_DROPS", "without_term", "SECANT_BOUNDS"]
