@@ -34,15 +34,17 @@ scored channel keeps its noise. The substitution is done in this process by wrap
 ``diagnosis.problem.stance_windows`` (a study device, not an API). The diagnosis is the
 submitted one; nothing here changes it.
 
-``--states`` then prints how well the landing leg's joint angles one sample before each
-touchdown (where its replay starts) are estimated, against the noise-free copy's samples:
+``--states`` then prints how well the landing leg's joint angles and the trunk's angular
+velocity one sample before each touchdown (where its replay starts) are estimated,
+against the noise-free copy's samples:
 a one-sided quadratic or cubic fit to the 15 samples up to it, the raw sample, a centred
 quadratic Savitzky–Golay smoother over 15 (which reads across the impact) — on the
 noise-free copy (the estimator's own bias) and on the level-1 copy (:func:`landing_angle_errors`).
 
 Figures (``name: value``): per case ``<tag>.<variant>.coef_err`` (relative to the true
 value's distance from neutral, as the other studies), and ``cases``; with ``--states``
-``landing_angle_rms.<estimator>.<copy>`` [rad].
+``landing_angle_rms.<estimator>.<copy>`` [rad] and ``trunk_rate_rms.<estimator>.<copy>``
+[rad/s].
 """
 
 from __future__ import annotations
@@ -200,11 +202,14 @@ ANGLE_ESTIMATORS = {"quadratic_past": ("past", 2), "cubic_past": ("past", 3),
                     "raw": ("raw", 0), "centred_sg": ("centred", 2)}
 #: samples of the one-sided fits and of the centred smoother (``smooth_window``)
 ANGLE_WINDOW = 15
+#: the trunk's angular velocity columns (gyro, trunk frame)
+GYRO = ("base_wx", "base_wy", "base_wz")
 
 
 def landing_angle_errors(case_dirs) -> dict[str, float]:
-    """RMS error [rad] of each :data:`ANGLE_ESTIMATORS` entry for the landing leg's joint
-    angles at the sample before every touchdown, on the ``none`` and ``all`` copies of
+    """RMS error of each :data:`ANGLE_ESTIMATORS` entry for the landing leg's joint angles
+    (``landing_angle_rms.*`` [rad]) and the trunk's angular velocity (``trunk_rate_rms.*``
+    [rad/s]) at the sample before every touchdown, on the ``none`` and ``all`` copies of
     the cases in ``case_dirs``, against the ``none`` copy's samples."""
     import numpy as np
     from scipy.signal import savgol_filter
@@ -227,14 +232,18 @@ def landing_angle_errors(case_dirs) -> dict[str, float]:
                 q = ds.trials[w.trial][cols].to_numpy(float)
                 q_true = truth.trials[w.trial][cols].to_numpy(float)[k]
                 rows = np.arange(k - ANGLE_WINDOW + 1, k + 1)
-                for name, (kind, deg) in ANGLE_ESTIMATORS.items():
-                    if kind == "past":
-                        est = np.polyfit((rows - k) * dt, q[rows], deg)[-1]
-                    elif kind == "raw":
-                        est = q[k]
-                    else:
-                        est = savgol_filter(q, ANGLE_WINDOW, deg, axis=0)[k]
-                    errs.setdefault(f"{name}.{copy}", []).append(est - q_true)
+                gyro = ds.trials[w.trial][list(GYRO)].to_numpy(float)
+                gyro_true = truth.trials[w.trial][list(GYRO)].to_numpy(float)[k]
+                for what, y, y_true in (("landing_angle", q, q_true),
+                                        ("trunk_rate", gyro, gyro_true)):
+                    for name, (kind, deg) in ANGLE_ESTIMATORS.items():
+                        if kind == "past":
+                            est = np.polyfit((rows - k) * dt, y[rows], deg)[-1]
+                        elif kind == "raw":
+                            est = y[k]
+                        else:
+                            est = savgol_filter(y, ANGLE_WINDOW, deg, axis=0)[k]
+                        errs.setdefault(f"{what}_rms.{name}.{copy}", []).append(est - y_true)
     return {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in errs.items()}
 
 
@@ -287,8 +296,7 @@ def main() -> None:
                for v in ALL_VARIANTS}
     figures["cases"] = len(rows)
     if args.states:
-        for k, v in landing_angle_errors([dirs[t] for t in args.cases]).items():
-            figures[f"landing_angle_rms.{k}"] = v
+        figures.update(landing_angle_errors([dirs[t] for t in args.cases]))
     emit_study(figures, rows, args.json)
     if tmp:
         tmp.cleanup()

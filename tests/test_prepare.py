@@ -383,3 +383,21 @@ def test_the_trailing_foots_deepest_depth_is_not_biased_by_intrusion_noise(datas
     assert len(errors) == 40
     assert abs(np.mean(errors)) < 0.4e-3        # the maximum: +0.79 mm
     assert max(rebounds) < 1e-12
+
+
+def test_past_angular_velocity_stops_at_the_row_before_an_impact(biped, trial):
+    """A trunk yaw rate that is cubic up to row k and jumps by 0.5 rad/s after it (the
+    impact): the one-sided fit returns the rate at k exactly; the centred smoother (the
+    rest of the window's state) reads the jump into row k."""
+    t = trial["time"].to_numpy()
+    k = 60
+    tk = t - t[k]
+    wz = 0.2 + 1.5 * tk - 30.0 * tk ** 2 + 400.0 * tk ** 3
+    df = trial.copy()
+    df["base_wz"] = wz
+    df.loc[k + 1:, "base_wz"] += 0.5
+    st = TrialStates(biped, df, biped.joint_names, FS, window=15)
+    w = st.past_angular_velocity(k)
+    assert w[2] == pytest.approx(wz[k], abs=1e-9)
+    assert w[:2] == pytest.approx(df[["base_wx", "base_wy"]].to_numpy()[k], abs=1e-9)
+    assert abs(st.w_B[k, 2] - wz[k]) > 0.05
