@@ -5,6 +5,7 @@ acceptance holds against the model it was judged on (``rejected_against``,
 ``rejudge_earlier``)."""
 
 import numpy as np
+import pytest
 
 from granular_mpc.validation.diagnosis.acceptance_records import Acceptance
 from granular_mpc.validation.diagnosis.ranking_records import CandidateStats
@@ -364,8 +365,10 @@ def test_a_proxy_added_before_the_rest_of_the_model_is_exchanged_for_the_term_it
     judged with the bias, and the bias judged again with it."""
     out, acceptance, refits = _exchange_case("cohesion", "joint_friction", monkeypatch)
     assert out is not None
-    sel, fit, step = out
+    sel, fit, step, rss_new = out
     assert sel == ["cohesion", "force_sensor_bias"] and set(fit.fitted) == set(sel)
+    # the RSS returned is the exchanged model's (the stand-in AICc is RSS + 2 per term)
+    assert step.contender_aicc[0] == pytest.approx(rss_new + 2.0 * len(sel))
     assert step.added == "cohesion" and step.contenders == ("cohesion", "joint_friction")
     assert step.contender_aicc[0] < step.contender_aicc[1]
     assert refits == [("cohesion", "force_sensor_bias")]

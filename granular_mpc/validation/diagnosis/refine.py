@@ -246,7 +246,7 @@ def exchange_terms(problem: Problem, pool: ReplayPool, res: Residuals, scr: Scre
                    preds: Sequence[dict],
                    rivals_of: Mapping[str, Sequence[tuple[str, Mapping[str, float]]]],
                    acceptance: list[Acceptance], refine_iterations: int
-                   ) -> tuple[list[str], GaussNewtonFit, SelectionStep] | None:
+                   ) -> tuple[list[str], GaussNewtonFit, SelectionStep, float] | None:
     """The exchange step of a stepwise selection: each added effect A competed, when it was
     added, with the other refined contenders against the model *of that moment*; a later
     addition may change that contest (a joint friction that beat a stiction while a depth
@@ -259,9 +259,9 @@ def exchange_terms(problem: Problem, pool: ReplayPool, res: Residuals, scr: Scre
     each judgement is appended to ``acceptance``; A's entry says it was exchanged.
 
     Returns:
-        The new selection (B in A's place), its refined fit and the contest as a selection
-        step (B added; contenders B and A, the AICc of the model with each); None: no
-        exchange.
+        The new selection (B in A's place), its refined fit, the contest as a selection
+        step (B added; contenders B and A, the AICc of the model with each) and the new
+        model's weighted RSS; None: no exchange.
     """
     current, _ = refined_aicc(problem, candidates, res, scr, preds, fitted, selected)
     for i, a in enumerate(selected):
@@ -270,12 +270,13 @@ def exchange_terms(problem: Problem, pool: ReplayPool, res: Residuals, scr: Scre
             if b in selected:
                 continue
             sel = list(selected[:i]) + [b] + list(selected[i + 1:])
-            start = _values(fitted, candidates, others)
+            start = _values(fitted, candidates, others)     # a fresh dict per rival
             start.update({c.key: float(b_params[c.param]) for c in candidates.columns[b]
                           if c.param in b_params})
             fit = refine_replays(problem, pool, res, candidates, sel, start,
                                  nuisance_columns(theta), iterations=refine_iterations)
-            score, _ = refined_aicc(problem, candidates, res, scr, fit.preds, fit.fitted, sel)
+            score, rss = refined_aicc(problem, candidates, res, scr, fit.preds, fit.fitted,
+                                      sel)
             if not score < current:
                 continue
             judged = [judge_in_model(problem, pool, res, candidates, name, sel, fit.fitted,
@@ -287,7 +288,7 @@ def exchange_terms(problem: Problem, pool: ReplayPool, res: Residuals, scr: Scre
                    f"AICc ({current:.1f} → {score:.1f}) and passes the acceptance")
             acceptance.append(Acceptance(a, False, {}, (), (why,), given=tuple(others),
                                          dropped=True))
-            return sel, fit, SelectionStep(b, (b, a), (score, current), fit.log)
+            return sel, fit, SelectionStep(b, (b, a), (score, current), fit.log), rss
     return None
 
 
@@ -425,11 +426,10 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
                               theta_final, final_preds, rivals_of, acceptance,
                               refine_iterations)
         if swap is not None:
-            selected, fit, step = swap
+            selected, fit, step, rss = swap
             steps.append(step)
             fitted, theta_final, final_preds = fit.fitted, dict(fit.theta), fit.preds
-            score, rss = refined_aicc(problem, candidates, res, scr, fit.preds, fit.fitted,
-                                      selected)
+            score = step.contender_aicc[0]
             for name in selected:
                 refined_fits[name].append(RefinedFit(tuple(s for s in selected if s != name),
                                                      score, rss, dict(fit.fitted[name])))
