@@ -13,6 +13,9 @@ State estimation (offline, so non-causal smoothing is fine):
 * joint rates: Savitzky–Golay derivative of the measured angles (the ``dq_*`` columns of
   a differentiated encoder are noisier than the derivative of a local fit);
 * trunk linear and angular velocity: Savitzky–Golay smoothing of ``base_v*`` / ``base_w*``;
+* at a touchdown (the sample before the impact) the landing leg's angles and the trunk's
+  angular velocity come instead from a one-sided cubic fit to the samples up to it
+  (:data:`PAST_FIT_DEGREE`): a centred smoother would read the impact into them;
 * ``grf_*`` and ``intrusion_*`` are smoothed *within* each stance run (they switch feet
   at the label change).
 
@@ -441,7 +444,9 @@ def stance_windows(ds: Dataset, biped: Biped, *, contact_stiffness: float = 2.0e
     A phase whose first samples show the stance foot at (almost) zero intrusion (median
     of the first three samples below ``touchdown_depth``) starts at its **touchdown**: the
     window starts one sample earlier, with that foot still above the sand; its joints'
-    angles and rates there come from a fit to the samples *before* the impact, and its
+    angles there (and their rates, when ``dq_*`` is not measured) and the trunk's angular
+    velocity come from a fit to the samples *before* the impact
+    (:meth:`TrialStates.past_fit`, :meth:`TrialStates.past_angular_velocity`), and its
     free surface from the mean of (contact-point height + measured intrusion) over the
     first samples of the phase. Otherwise (labels that start mid-stance) the window
     starts at the first sample with the foot buried at its measured intrusion. Without
