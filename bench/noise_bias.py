@@ -95,17 +95,25 @@ def parse_case(tag: str) -> tuple[list[str], str, str, float, int]:
     """(plant effects, candidate, main parameter, true value, seed) of a case tag."""
     from granular_mpc.config import parse_effect_string
     from granular_mpc.effects import effect_info
+    from granular_mpc.exceptions import GranularMpcError
 
     if "@" in tag:
         spec, seed = tag.rsplit("@", 1)
-        parsed = parse_effect_string(spec)
+        try:
+            seed = int(seed)
+            parsed = parse_effect_string(spec)
+            info = effect_info(parsed["name"])
+        except (ValueError, GranularMpcError) as e:
+            raise SystemExit(f"--cases: {tag!r}: {e}") from None
+        if not parsed["params"]:
+            raise SystemExit(f"--cases: {tag!r} names no parameter: write the true value, "
+                             "e.g. cohesion:suction=3000@1")
         name = parsed["name"]
-        info = effect_info(name)
         params = info.resolve_params(parsed["params"])
         # the main parameter: the one furthest from neutral relative to its range
         main = max(parsed["params"], key=lambda p: abs(params[p] - info.neutral_params()[p])
                    / (info.params[p].upper - info.params[p].lower))
-        return [spec], name, main, float(params[main]), int(seed)
+        return [spec], name, main, float(params[main]), seed
     try:
         form_name, rest = tag.rsplit("_m", 1)
         mag, seed = rest.split("_s")

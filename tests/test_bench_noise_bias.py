@@ -23,6 +23,12 @@ def test_parse_case_reads_forms_and_library_effects():
     for bad in ("stiction", "nosuchform_m0_s1", "stiction_m7_s1"):
         with pytest.raises(SystemExit, match="neither"):
             parse_case(bad)
+    with pytest.raises(SystemExit, match="names no parameter"):
+        parse_case("cohesion@1")
+    with pytest.raises(SystemExit, match="unknown effect 'nosuch'"):
+        parse_case("nosuch:k=1@1")
+    with pytest.raises(SystemExit, match="invalid literal"):
+        parse_case("cohesion:suction=3000@x")
 
 
 def test_variants_silence_one_group_each_and_table_prints_every_variant():
