@@ -1,6 +1,7 @@
 """Out-of-library benchmark of ``diagnose``: effects nobody put in a library, found or not.
 
     python bench/out_of_library.py [--quick] [--forms NAME …] [--seeds 1 2 3] [--steps 7]
+                                   [--speeds 0.15 0.25 0.35]
                                    [--mag-index 0 1] [--no-pairs] [--no-nulls]
                                    [--mismatches KEY=VALUE …] [--user-terms] [--measurement]
                                    [--workers 1] [--n-boot 60]
@@ -10,7 +11,8 @@ Every hidden effect here is written with the public plugin API (``register_effec
 ``register_joint_effect``, ``register_sensor_effect``) exactly as a user's effect file
 would be, and none of them is in the effects library (:data:`FORMS`: six terrain forces,
 two joint torques, three sensor maps). Per case one plant run (``synth``, no noise: 3
-trials at 0.15 / 0.25 / 0.35 m/s × ``--steps`` stances, the test suite's design) is
+trials at 0.15 / 0.25 / 0.35 m/s × ``--steps`` stances, the test suite's design; another
+design with ``--speeds``, one trial per speed) is
 turned into a data set with sensor noise level 1 (``noisy_copy``) and diagnosed two or
 three times:
 
@@ -129,7 +131,8 @@ def truth_replay(case: Case, noisy: Path) -> dict:
 
 
 def run_case(case: Case, root: Path, steps: int, n_boot: int, user_terms: bool,
-             measurement: bool = False, reuse: bool = False) -> dict:
+             measurement: bool = False, reuse: bool = False,
+             speeds: tuple[float, ...] = SPEEDS) -> dict:
     """Synthesize, noise (``reuse``: keep a noisy data set already in ``root``), diagnose
     with the library (and with ``measurement`` the measurement-model family), then with
     the proposal fed back; replay the truth at its true value (:func:`truth_replay`)."""
@@ -143,12 +146,13 @@ def run_case(case: Case, root: Path, steps: int, n_boot: int, user_terms: bool,
     t0 = time.perf_counter()
     clean, noisy = root / f"{case.tag}_clean", root / f"{case.tag}_noisy"
     if not (reuse and (noisy / "meta.yaml").is_file()):
-        synthesize("sand_walk", clean, speeds=SPEEDS, steps=steps, seed=case.seed,
+        synthesize("sand_walk", clean, speeds=list(speeds), steps=steps, seed=case.seed,
                    effects=case.effects(), noise=0.0, format="parquet",
                    overrides=[case.mismatch] if case.mismatch else [], overwrite=True,
                    workers=1)
         noisy_copy(clean, noisy, 1.0, seed=case.seed, overwrite=True)
-    row: dict = {"case": asdict(case), "synth_s": time.perf_counter() - t0}
+    row: dict = {"case": asdict(case), "design": {"speeds": list(speeds), "steps": steps},
+                 "synth_s": time.perf_counter() - t0}
     t0 = time.perf_counter()
     lib = diagnose(noisy, root / f"{case.tag}_lib", candidates=library, seed=case.seed,
                    n_boot=n_boot, workers=1, figures=False)
@@ -196,10 +200,26 @@ def run_case(case: Case, root: Path, steps: int, n_boot: int, user_terms: bool,
 
 
 
+def check_design(out: Path, speeds: list[float], steps: int, error) -> None:
+    """One ``--out`` folder holds one design: its speeds and stances per trial are written
+    to ``design.json`` on the first run, and a later run (``--reuse``, ``--report-only``)
+    with another design stops with ``error`` instead of mixing the two."""
+    mark = out / "design.json"
+    design = {"speeds": speeds, "steps": steps}
+    if mark.is_file():
+        old = json.loads(mark.read_text(encoding="utf-8"))
+        if old != design:
+            error(f"--out {out} holds cases of another design ({mark.name}: speeds "
+                  f"{old.get('speeds')}, steps {old.get('steps')}; asked: speeds {speeds}, "
+                  f"steps {steps}): use another --out, or the same --speeds and --steps")
+        return
+    mark.write_text(json.dumps(design), encoding="utf-8")
+
+
 def _child(args) -> None:
     case = Case(**json.loads(args.case))
     row = run_case(case, args.out, args.steps, args.n_boot, args.user_terms, args.measurement,
-                   args.reuse)
+                   args.reuse, tuple(args.speeds))
     (args.out / f"{case.tag}.json").write_text(json.dumps(row, indent=1, default=str),
                                                encoding="utf-8")
 
@@ -210,7 +230,9 @@ def main() -> None:
                     choices=[f.name for f in FORMS])
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--magnitudes", type=int, default=2, choices=(1, 2))
-    ap.add_argument("--steps", type=int, default=7, help="stances per trial (3 trials)")
+    ap.add_argument("--steps", type=int, default=7, help="stances per trial")
+    ap.add_argument("--speeds", type=float, nargs="+", default=list(SPEEDS),
+                    help="commanded speeds [m/s], one trial each")
     ap.add_argument("--n-boot", type=int, default=60)
     ap.add_argument("--no-pairs", action="store_true")
     ap.add_argument("--no-nulls", action="store_true")
@@ -232,6 +254,10 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--case", help=argparse.SUPPRESS)      # internal: run one case
     args = ap.parse_args()
+    if not args.speeds or any(not 0.0 < v <= 1.0 for v in args.speeds):
+        ap.error(f"--speeds: {args.speeds} — give one or more speeds in (0, 1] m/s")
+    if args.steps < 2:
+        ap.error(f"--steps: {args.steps} — give at least 2 stances per trial")
     if args.case:
         return _child(args)
     mismatches = () if args.no_nulls else tuple(args.mismatches)
@@ -243,6 +269,7 @@ def main() -> None:
         tmp = tempfile.TemporaryDirectory(prefix="out_of_library_")
         args.out = Path(tmp.name)
     args.out.mkdir(parents=True, exist_ok=True)
+    check_design(args.out, list(args.speeds), args.steps, ap.error)
     cases = build_cases(args.forms, args.seeds, args.mag_index or args.magnitudes,
                         not args.no_pairs, mismatches)
     print(f"{len(cases)} cases in {args.out}", flush=True)
@@ -253,7 +280,8 @@ def main() -> None:
             return None
         if not ((args.reuse or args.report_only) and res.is_file()):
             cmd = [sys.executable, __file__, "--case", json.dumps(asdict(case)), "--out",
-                   str(args.out), "--steps", str(args.steps), "--n-boot", str(args.n_boot)]
+                   str(args.out), "--steps", str(args.steps), "--n-boot", str(args.n_boot),
+                   "--speeds", *map(str, args.speeds)]
             cmd += ["--user-terms"] if args.user_terms else []
             cmd += ["--measurement"] if args.measurement else []
             cmd += ["--reuse"] if args.reuse else []      # keep the noisy data sets there

@@ -1,0 +1,41 @@
+"""The out-of-library benchmark's command line (bench/out_of_library.py): a design outside
+the allowed range stops before any case runs, with one message naming the option."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parent.parent / "bench" / "out_of_library.py"
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--speeds", "0"], "--speeds: [0.0]"),
+    (["--speeds", "0.2", "1.5"], "--speeds: [0.2, 1.5]"),
+    (["--steps", "1"], "--steps: 1"),
+])
+def test_a_design_out_of_range_stops_before_any_case(tmp_path, args, message):
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, str(SCRIPT), *args, "--out", str(out)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert message in proc.stderr
+    assert not out.exists()                     # nothing synthesised, nothing written
+
+
+def test_one_out_folder_holds_one_design(tmp_path):
+    sys.path.insert(0, str(SCRIPT.parent))
+    from out_of_library import check_design
+
+    errors = []
+    check_design(tmp_path, [0.15, 0.25, 0.35], 7, errors.append)
+    assert errors == [] and (tmp_path / "design.json").is_file()
+    check_design(tmp_path, [0.15, 0.25, 0.35], 7, errors.append)      # the same: reused
+    assert errors == []
+    check_design(tmp_path, [0.15, 0.2, 0.3, 0.35], 11, errors.append)
+    assert len(errors) == 1
+    assert "speeds [0.15, 0.25, 0.35], steps 7" in errors[0]
+    assert "asked: speeds [0.15, 0.2, 0.3, 0.35], steps 11" in errors[0]
