@@ -84,6 +84,33 @@ def test_only_the_leading_contenders_partner_is_added():
     assert out == ["inertial_drag", "cohesion", "depth_hardening"]
 
 
+def test_after_an_addition_the_leaders_partner_against_the_current_model_is_the_fallback():
+    """After a force-sensor bias is added, the conditional test ranks a joint proposal
+    first (inclusion 0.92) and the user's knee spring, collinear with it (0.95), loses the
+    bootstrap vote (0.08). With the collinear pairs measured against the current model the
+    spring is the leader's partner: a contender of the same step (not a rival), so the
+    acceptance judges it when the proposal is refused. Without them it is only a rival,
+    which is never the fallback of a rejected leader (the out-of-library pair of seed 4,
+    docs/validation.md §5.3.13)."""
+    rows = [_row("proposed_joint", 0.49, 0.92), _row("user_knee_spring", 0.42, 0.08),
+            _row("cohesion", 0.0, 0.0, passes=False)]
+    stats = _stats(rows)
+    pair = [IndistinguishablePair(("proposed_joint", "user_knee_spring"), 0.95, (0.49, 0.42),
+                                  "")]
+    selected = ["force_sensor_bias"]
+    assert [r.effect for r in contenders_for(stats, selected, set(), 2, pair,
+                                             with_rivals=False)] == ["proposed_joint",
+                                                                     "user_knee_spring"]
+    spring = stats[1]
+    assert spring.effect == "user_knee_spring" and not spring.significant and is_rival(spring)
+    assert [r.effect for r in contenders_for(stats, selected, set(), 2, (),
+                                             with_rivals=False)] == ["proposed_joint"]
+    assert [r.effect for r in contenders_for(stats, selected, set(), 2, ())] == [
+        "proposed_joint", "user_knee_spring"]                 # as a rival only
+    # a partner is refined only beside a significant leader
+    assert contenders_for(stats, selected, {"proposed_joint"}, 2, pair) == []
+
+
 def test_nothing_is_refined_without_a_significant_leader():
     rows = [_row("joint_friction", 0.40, 0.3), _row("depth_hardening", 0.35, 0.1)]
     stats = _stats(rows)

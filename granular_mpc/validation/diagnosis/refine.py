@@ -1,6 +1,6 @@
 """Stage 4, refine: add effects one at a time — the best significant contenders, and the
-screening's indistinguishable partners of the leading one (significant or not), are each
-refined by the same number of Gauss–Newton replay iterations; the one with the lowest AICc
+indistinguishable partners of the leading one against the current model (significant or
+not), are each refined by the same number of Gauss–Newton replay iterations; the one with the lowest AICc
 of its replayed residual that passes honest acceptance (:mod:`.acceptance`: its replays
 improve its credited channels, its coefficient is physical) is added, the others are
 re-tested conditionally on the refined model; then every earlier addition is judged again
@@ -25,10 +25,11 @@ from .design import GeometryRows
 from .gauss_newton import GaussNewtonFit, refine_replays
 from .problem import Problem
 from .ranking_records import CandidateStats, ConditionalResult, Ranked, RefinedFit
-from .regression import aicc
+from .regression import Regression, aicc
 from .residuals import Residuals
 from .result import ConditionalRow, IndistinguishablePair, RefinedHeldout, SelectionStep
-from .screen import Screening, candidate_stats, channel_heldout, passes_but_inclusion
+from .screen import (INDISTINGUISHABLE_CORRELATION, Screening, candidate_stats,
+                     channel_heldout, indistinguishable, passes_but_inclusion)
 
 #: how many times an earlier addition may be dropped (:func:`rejudge_earlier`) and the
 #: forward selection resumed against the reduced model
@@ -118,8 +119,9 @@ def contenders_for(stats: Sequence[CandidateStats], selected: Sequence[str],
         rejected: the effects the acceptance rejected against the current model
             (:func:`rejected_against`).
         max_contenders: significant candidates refined.
-        pairs: the screening's indistinguishable pairs (pass none once an effect has been
-            added: they were measured against the calibrated model only).
+        pairs: the indistinguishable pairs against the current model: the screening's
+            before any addition (collinear or a near tie of the bootstrap), then the
+            collinear ones of the last conditional test.
         twins: terrain-strength twins (never rivals, :mod:`.strength`).
         with_rivals: append the rivals (False: the significant contenders and partners).
 
@@ -310,9 +312,10 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
            scr: Screening, pool: ReplayPool, *, n_boot: int, seed: int, max_effects: int,
            max_contenders: int, refine_iterations: int) -> Refinement:
     """Add at most ``max_effects`` effects: ``max_contenders`` significant candidates, and
-    the screening's indistinguishable partners of the leading one (:func:`contenders_for`),
-    are each refined by ``refine_iterations`` replay Gauss–Newton iterations; the lowest
-    refined AICc that passes the acceptance is added."""
+    the indistinguishable partners of the leading one (:func:`contenders_for`; measured
+    against the calibrated model for the first addition, against the current model after
+    one), are each refined by ``refine_iterations`` replay Gauss–Newton iterations; the
+    lowest refined AICc that passes the acceptance is added."""
     windows, channels, edges = problem.windows, problem.channels, problem.edges
     geo = res.geometry
     base_keys = list(scr.base_keys)
@@ -330,7 +333,9 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
     def conditional_test(fit: GaussNewtonFit) -> list[CandidateStats]:
         """The candidates not added, re-tested against the current model (``selected`` at
         ``fitted``, linearised around it; the sensitivities of the added ones from ``fit``);
-        each result is recorded in ``conditional``."""
+        each result is recorded in ``conditional``, and the collinear pairs against that
+        model in ``step_pairs`` (the next step's partners)."""
+        nonlocal step_pairs
         R_cur = residual_cube(windows, final_preds, channels, edges)
         sens_c = dict(res.sens)
         sens_c.update(fit.sens_selected)
@@ -343,11 +348,18 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
         for c in nuisance_columns(theta_final):
             b_c[c.key] = c.bounds
         keys_fixed = base_keys + [k for s in selected for k in cand_keys[s]]
-        reg_c = scr.builder.build(R_cur, sens_c, geo_c, b_c, keys_fixed).regression
+        regs_c = scr.builder.build(R_cur, sens_c, geo_c, b_c, keys_fixed)
+        reg_c = regs_c.regression
         rest = {n: k for n, k in cand_keys.items() if n not in selected}
         out = candidate_stats(reg_c, keys_fixed, rest, candidates.columns, candidates.infos,
                               n_boot=n_boot, seed=seed, max_effects=max_effects - len(selected),
                               not_twins=scr.not_twins)
+        # collinear pairs only: a near tie of the bootstrap among what an addition left is
+        # weak evidence, and its partner would be the fallback of a refused leader
+        step_pairs = tuple(p for p in indistinguishable(
+            reg_c, keys_fixed, rest, out, windows, candidates.infos,
+            Regression(regs_c.stance, b_c, keys_fixed, seed=seed))
+            if abs(p.correlation) >= INDISTINGUISHABLE_CORRELATION and not twins & set(p.effects))
         for r in out:
             conditional[r.effect].append(ConditionalResult(tuple(selected),
                                                            r.heldout_error_reduction,
@@ -355,11 +367,13 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
         return out
 
     twins = {t.effect for t in scr.strength_twins}
+    step_pairs: tuple[IndistinguishablePair, ...] = ()
     rivals_of: dict[str, list[tuple[str, dict[str, float]]]] = {}
     for _ in range(1 + MAX_DROPS):     # a drop (rejudge_earlier) makes room again
         while len(selected) < max_effects:
             rejected = rejected_against(acceptance, selected)
-            pairs = scr.indistinguishable if not selected else ()
+            # the leader's partners: against the calibrated model, then the current one
+            pairs = scr.indistinguishable if not selected else step_pairs
             contenders = contenders_for(stats, selected, rejected, max_contenders, pairs, twins)
             if not contenders:
                 break
