@@ -1,12 +1,12 @@
 """Stage 4, refine: add effects one at a time — the best significant contenders, and the
 indistinguishable partners of the leading one against the current model (significant or
-not), are each refined by the same number of Gauss–Newton replay iterations; the one with the lowest AICc
-of its replayed residual that passes honest acceptance (:mod:`.acceptance`: its replays
-improve its credited channels, its coefficient is physical) is added, the others are
-re-tested conditionally on the refined model; then every earlier addition is judged again
-against the final model (:func:`rejudge_earlier`) and each contest is run again against it
-(:func:`exchange_terms`) — then the final ranking and the refined model's held-out
-statistics (``docs/validation.md`` §3.3)."""
+not), are each refined by the same number of Gauss–Newton replay iterations; the one with
+the lowest AICc of its replayed residual that passes honest acceptance (:mod:`.acceptance`:
+its replays improve its credited channels, its coefficient is physical) is added, the
+others are re-tested conditionally on the refined model; then every earlier addition is
+judged again against the final model (:func:`rejudge_earlier`) and each contest is run
+again against it (:func:`exchange_terms`) — then the final ranking and the refined
+model's held-out statistics (``docs/validation.md`` §3.3)."""
 
 from __future__ import annotations
 
@@ -359,7 +359,8 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
         step_pairs = tuple(p for p in indistinguishable(
             reg_c, keys_fixed, rest, out, windows, candidates.infos,
             Regression(regs_c.stance, b_c, keys_fixed, seed=seed))
-            if abs(p.correlation) >= INDISTINGUISHABLE_CORRELATION and not twins & set(p.effects))
+            if abs(p.correlation) >= INDISTINGUISHABLE_CORRELATION
+            and not twins & set(p.effects))
         for r in out:
             conditional[r.effect].append(ConditionalResult(tuple(selected),
                                                            r.heldout_error_reduction,
