@@ -200,6 +200,21 @@ def run_case(case: Case, root: Path, steps: int, n_boot: int, user_terms: bool,
 
 
 
+def check_speeds(speeds: list[float], error) -> None:
+    """Each speed against the scenario's own range of ``command.speed`` (the validation
+    ``synthesize`` runs in every case), checked once before any case starts."""
+    from granular_mpc.config import validate
+    from granular_mpc.exceptions import ConfigError
+    from granular_mpc.scenario import find_scenario, load_scenario
+
+    command = load_scenario(find_scenario("sand_walk")).command
+    for v in speeds:
+        try:
+            validate(type(command), {**command.model_dump(), "speed": v}, source="--speeds")
+        except ConfigError as e:
+            error(str(e))
+
+
 def check_design(out: Path, speeds: list[float], steps: int, error) -> None:
     """One ``--out`` folder holds one design: its speeds and stances per trial are written
     to ``design.json`` on the first run, and a later run (``--reuse``, ``--report-only``)
@@ -254,8 +269,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--case", help=argparse.SUPPRESS)      # internal: run one case
     args = ap.parse_args()
-    if not args.speeds or any(not 0.0 < v <= 1.0 for v in args.speeds):
-        ap.error(f"--speeds: {args.speeds} — give one or more speeds in (0, 1] m/s")
+    check_speeds(args.speeds, ap.error)
     if args.steps < 2:
         ap.error(f"--steps: {args.steps} — give at least 2 stances per trial")
     if args.case:

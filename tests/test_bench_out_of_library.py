@@ -1,5 +1,6 @@
 """The out-of-library benchmark's command line (bench/out_of_library.py): a design outside
-the allowed range stops before any case runs, with one message naming the option."""
+the allowed range (a speed outside the scenario's ``command.speed`` range) stops before
+any case runs, with one message naming the option."""
 
 from __future__ import annotations
 
@@ -13,8 +14,9 @@ SCRIPT = Path(__file__).resolve().parent.parent / "bench" / "out_of_library.py"
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--speeds", "0"], "--speeds: [0.0]"),
-    (["--speeds", "0.2", "1.5"], "--speeds: [0.2, 1.5]"),
+    (["--speeds", "2"], "--speeds: speed: Input should be less than or equal to 1.5 (got 2.0)"),
+    (["--speeds", "0.2", "-3"],
+     "--speeds: speed: Input should be greater than or equal to -1 (got -3.0)"),
     (["--steps", "1"], "--steps: 1"),
 ])
 def test_a_design_out_of_range_stops_before_any_case(tmp_path, args, message):
