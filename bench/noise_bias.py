@@ -234,6 +234,7 @@ def landing_angle_errors(case_dirs) -> dict[str, float]:
         dt = 1.0 / truth.meta.sample_rate_hz
         for copy in ("none", "all"):
             ds = truth if copy == "none" else load_dataset(d / copy / "data")
+            centred: dict = {}            # (trial, columns) → the centred smoother, once
             for w in windows:
                 k = w.row_start - 1
                 cols = [f"q_{j}" for j in ds.joint_names if j.startswith(w.side + "_")]
@@ -242,15 +243,18 @@ def landing_angle_errors(case_dirs) -> dict[str, float]:
                 rows = np.arange(k - ANGLE_WINDOW + 1, k + 1)
                 gyro = ds.trials[w.trial][list(GYRO)].to_numpy(float)
                 gyro_true = truth.trials[w.trial][list(GYRO)].to_numpy(float)[k]
-                for what, y, y_true in (("landing_angle", q, q_true),
-                                        ("trunk_rate", gyro, gyro_true)):
+                for what, y, y_true, ycols in (("landing_angle", q, q_true, tuple(cols)),
+                                               ("trunk_rate", gyro, gyro_true, GYRO)):
                     for name, (kind, deg) in ANGLE_ESTIMATORS.items():
                         if kind == "past":
                             est = np.polyfit((rows - k) * dt, y[rows], deg)[-1]
                         elif kind == "raw":
                             est = y[k]
                         else:
-                            est = savgol_filter(y, ANGLE_WINDOW, deg, axis=0)[k]
+                            key = (w.trial, ycols, deg)
+                            if key not in centred:
+                                centred[key] = savgol_filter(y, ANGLE_WINDOW, deg, axis=0)
+                            est = centred[key][k]
                         errs.setdefault(f"{what}_rms.{name}.{copy}", []).append(est - y_true)
     return {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in errs.items()}
 

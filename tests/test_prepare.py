@@ -20,9 +20,9 @@ from scipy.signal import savgol_coeffs
 from granular_mpc.robot.kinematics import leg_geometry
 from granular_mpc.rotations import rot_y, rot_z
 from granular_mpc.validation.dataformat import Dataset, DatasetMeta
-from granular_mpc.validation.prepare import (PAST_FIT_DEGREE, StanceWindow, TrialStates, channel_names,
-                                             channel_unit, foot_pitch, patch_points,
-                                             stance_windows, windows_frame)
+from granular_mpc.validation.prepare import (PAST_FIT_DEGREE, StanceWindow, TrialStates,
+                                             channel_names, channel_unit, foot_pitch,
+                                             patch_points, stance_windows, windows_frame)
 
 FS = 500.0
 DT = 1.0 / FS
