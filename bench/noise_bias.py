@@ -1,7 +1,7 @@
 """Where a refined coefficient's error comes from: the sensor noise, group by group.
 
     python bench/noise_bias.py [--cases TAG …] [--out DIR] [--json PATH] [--workers 2]
-                               [--states]
+                               [--states | --segments 1 2]
 
 The out-of-library benchmark fits the user's stiction τ_s 12–43 % high and the torque
 gain 12–23 % high, every seed the same way; the library's recovery study fits the Coulomb
@@ -33,6 +33,11 @@ the inputs (configuration, velocity, torques, contact state, surface) — while 
 scored channel keeps its noise. The substitution is done in this process by wrapping
 ``diagnosis.problem.stance_windows`` (a study device, not an API). The diagnosis is the
 submitted one; nothing here changes it.
+
+``--segments 1 2`` replaces the variants: the noise-free and the level-1 copy, each
+diagnosed with one replay per stance and with restarts mid-stance
+(``replay_segments``, :mod:`granular_mpc.validation.restarts`); variants ``none.seg1``,
+``none.seg2``, ``all.seg1``, ``all.seg2``, and per variant whether the term was added.
 
 ``--states`` then prints how well the landing leg's joint angles and the trunk's angular
 velocity one sample before each touchdown (where its replay starts) are estimated,
@@ -155,9 +160,11 @@ def clean_inputs_of(clean_windows, parts):
     return windows
 
 
-def run_case(tag: str, root: Path) -> dict:
+def run_case(tag: str, root: Path, segments: tuple[int, ...] = ()) -> dict:
     """Synthesize once (kept in ``root``), then one noisy copy and one diagnosis per
-    variant; the refined main coefficient of each."""
+    variant; the refined main coefficient of each. With ``segments`` instead: the
+    ``none`` and ``all`` copies only, each diagnosed with every number of replay segments
+    per stance (variants ``<copy>.seg<n>``)."""
     from granular_mpc.effects import effect_info
     from granular_mpc.validation.diagnose import diagnose
     from granular_mpc.validation.synth import noisy_copy, synthesize
@@ -171,15 +178,22 @@ def run_case(tag: str, root: Path) -> dict:
     neutral = effect_info(cand).neutral_params()[param]
     row = {"case": tag, "candidate": cand, "param": param, "true": true, "fits": {},
            "coef_err": {}}
-    for name, noise in VARIANTS.items():
+    runs = ([(name, n) for name in ("none", "all") for n in segments] if segments
+            else [(name, 1) for name in VARIANTS])
+    for name, n in runs:
         data = root / name / "data"
-        noisy_copy(clean, data, noise, seed=seed, overwrite=True)
-        d = diagnose(data, root / name / "diag", candidates=[cand], seed=seed, n_boot=20,
-                     workers=1, figures=False)
+        if not (data / "meta.yaml").is_file():
+            noisy_copy(clean, data, VARIANTS[name], seed=seed, overwrite=True)
+        label = f"{name}.seg{n}" if segments else name
+        d = diagnose(data, root / name / f"diag_seg{n}", candidates=[cand], seed=seed,
+                     n_boot=20, workers=1, figures=False, replay_segments=n)
         fit = next((c.value for a in d.acceptance if a.effect == cand
                     for c in a.coefficients if c.param == param), math.nan)
-        row["fits"][name] = fit
-        row["coef_err"][name] = (fit - true) / (true - neutral)
+        row["fits"][label] = fit
+        row["coef_err"][label] = (fit - true) / (true - neutral)
+        row.setdefault("added", {})[label] = cand in d.added
+    if segments:
+        return row
     from unittest import mock
 
     from granular_mpc.validation import prepare
@@ -200,8 +214,8 @@ def run_case(tag: str, root: Path) -> dict:
     return row
 
 
-def _child(tag: str, out: Path) -> None:
-    row = run_case(tag, out)
+def _child(tag: str, out: Path, segments: tuple[int, ...] = ()) -> None:
+    row = run_case(tag, out, segments)
     (out / "row.json").write_text(json.dumps(row, indent=1), encoding="utf-8")
 
 
@@ -261,11 +275,12 @@ def landing_angle_errors(case_dirs) -> dict[str, float]:
 
 def table(rows: list[dict]) -> str:
     """Markdown: one row per case, the coefficient error per variant."""
-    head = "| case | truth | " + " | ".join(ALL_VARIANTS) + " |"
-    lines = [head, "|" + "---|" * (len(ALL_VARIANTS) + 2)]
+    cols = list(rows[0]["coef_err"]) if rows else list(ALL_VARIANTS)
+    head = "| case | truth | " + " | ".join(cols) + " |"
+    lines = [head, "|" + "---|" * (len(cols) + 2)]
     for r in rows:
         errs = " | ".join(f"{100 * r['coef_err'][v]:+.0f} %" if math.isfinite(r["coef_err"][v])
-                          else "-" for v in ALL_VARIANTS)
+                          else "-" for v in cols)
         lines.append(f"| {r['case']} | {r['param']} = {r['true']:g} | {errs} |")
     return "\n".join(lines)
 
@@ -278,10 +293,15 @@ def main() -> None:
     ap.add_argument("--json", type=Path)
     ap.add_argument("--states", action="store_true",
                     help="also the landing leg's angle estimates against the noise-free copy")
+    ap.add_argument("--segments", type=int, nargs="+", default=[],
+                    help="instead of the sensor variants: the noise-free and level-1 copies "
+                         "diagnosed with each number of replay segments per stance")
     ap.add_argument("--case", help=argparse.SUPPRESS)      # internal: run one case
     args = ap.parse_args()
+    if any(n < 1 for n in args.segments):
+        ap.error(f"--segments: {args.segments} — each at least 1 (1: whole stances)")
     if args.case:
-        _child(args.case, args.out)
+        _child(args.case, args.out, tuple(args.segments))
         return
     for tag in args.cases:
         parse_case(tag)                                     # bad tags fail before any run
@@ -294,7 +314,9 @@ def main() -> None:
         t0 = time.perf_counter()
         dirs[tag].mkdir(parents=True, exist_ok=True)
         with open(dirs[tag] / "log.txt", "w", encoding="utf-8") as log:
-            subprocess.run([sys.executable, __file__, "--case", tag, "--out", str(dirs[tag])],
+            subprocess.run([sys.executable, __file__, "--case", tag, "--out", str(dirs[tag]),
+                            *(["--segments", *map(str, args.segments)] if args.segments
+                              else [])],
                            stdout=log, stderr=subprocess.STDOUT, check=True)
         row = json.loads((dirs[tag] / "row.json").read_text(encoding="utf-8"))
         print(f"{tag}: " + ", ".join(f"{v} {100 * e:+.0f} %" for v, e in row["coef_err"].items())
@@ -305,7 +327,7 @@ def main() -> None:
         rows = list(pool.map(one, args.cases))
     print(table(rows))
     figures = {f"{r['case']}.{v}.coef_err": r["coef_err"][v] for r in rows
-               for v in ALL_VARIANTS}
+               for v in r["coef_err"]}
     figures["cases"] = len(rows)
     if args.states:
         figures.update(landing_angle_errors([dirs[t] for t in args.cases]))

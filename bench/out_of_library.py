@@ -4,7 +4,7 @@
                                    [--speeds 0.15 0.25 0.35]
                                    [--mag-index 0 1] [--no-pairs] [--no-nulls]
                                    [--mismatches KEY=VALUE …] [--user-terms] [--measurement]
-                                   [--workers 1] [--n-boot 60]
+                                   [--replay-segments 1] [--workers 1] [--n-boot 60]
                                    [--out DIR [--reuse | --report-only]] [--json PATH]
 
 Every hidden effect here is written with the public plugin API (``register_effect``,
@@ -112,7 +112,7 @@ def _summary(d) -> dict:
             "ranks": {r.effect: r.rank for r in d.ranking}}
 
 
-def truth_replay(case: Case, noisy: Path) -> dict:
+def truth_replay(case: Case, noisy: Path, segments: int = 1) -> dict:
     """The true model replayed on the data: channel → [RMSE before, after] of the model
     file without and with the case's true effects at their true values. The plant of every
     form case *is* the model file plus those effects, so this is what the best possible
@@ -126,16 +126,17 @@ def truth_replay(case: Case, noisy: Path) -> dict:
     if not case.form:
         return {}
     v = validate(noisy, None, effects=case.effects(), params=None, n_boot=20, workers=1,
-                 figures=False, seed=case.seed)
+                 figures=False, seed=case.seed, replay_segments=segments)
     return {c: [ba["before"], ba["after"]] for c, ba in v.report["before_after"].items()}
 
 
 def run_case(case: Case, root: Path, steps: int, n_boot: int, user_terms: bool,
              measurement: bool = False, reuse: bool = False,
-             speeds: tuple[float, ...] = SPEEDS) -> dict:
+             speeds: tuple[float, ...] = SPEEDS, segments: int = 1) -> dict:
     """Synthesize, noise (``reuse``: keep a noisy data set already in ``root``), diagnose
     with the library (and with ``measurement`` the measurement-model family), then with
-    the proposal fed back; replay the truth at its true value (:func:`truth_replay`)."""
+    the proposal fed back; replay the truth at its true value (:func:`truth_replay`).
+    ``segments``: replays per stance of every diagnosis and of the truth's replay."""
     from granular_mpc.effects.measurement import MEASUREMENT
     from granular_mpc.validation.diagnose import diagnose
     from granular_mpc.validation.diagnosis.proposal import proposed_effects
@@ -151,15 +152,15 @@ def run_case(case: Case, root: Path, steps: int, n_boot: int, user_terms: bool,
                    overrides=[case.mismatch] if case.mismatch else [], overwrite=True,
                    workers=1)
         noisy_copy(clean, noisy, 1.0, seed=case.seed, overwrite=True)
-    row: dict = {"case": asdict(case), "design": {"speeds": list(speeds), "steps": steps},
+    row: dict = {"case": asdict(case), "design": design_of(list(speeds), steps, segments),
                  "synth_s": time.perf_counter() - t0}
     t0 = time.perf_counter()
     lib = diagnose(noisy, root / f"{case.tag}_lib", candidates=library, seed=case.seed,
-                   n_boot=n_boot, workers=1, figures=False)
+                   n_boot=n_boot, workers=1, figures=False, replay_segments=segments)
     row["lib"] = _summary(lib)
     row["lib_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    row["truth_replay"] = truth_replay(case, noisy)
+    row["truth_replay"] = truth_replay(case, noisy, segments)
     row["truth_s"] = time.perf_counter() - t0
     prop = lib.proposal
     row["proposal"] = ({"file": prop.file, "files": list(prop.files),
@@ -182,7 +183,7 @@ def run_case(case: Case, root: Path, steps: int, n_boot: int, user_terms: bool,
         t0 = time.perf_counter()
         fb = diagnose(noisy, root / f"{case.tag}_fb", candidates=cands + ([user] if user else []),
                       seed=case.seed, n_boot=n_boot, workers=1, figures=False,
-                      effect_files=files)
+                      effect_files=files, replay_segments=segments)
         row["fb"] = _summary(fb)
         row["fb_s"] = time.perf_counter() - t0
     if files and user:
@@ -191,7 +192,7 @@ def run_case(case: Case, root: Path, steps: int, n_boot: int, user_terms: bool,
         t0 = time.perf_counter()
         alone = diagnose(noisy, root / f"{case.tag}_fb_alone", candidates=cands,
                          seed=case.seed, n_boot=n_boot, workers=1, figures=False,
-                         effect_files=files)
+                         effect_files=files, replay_segments=segments)
         row["fb_alone"] = _summary(alone)
         row["fb_s"] += time.perf_counter() - t0
     elif files:
@@ -215,18 +216,29 @@ def check_speeds(speeds: list[float], error) -> None:
             error(str(e))
 
 
-def check_design(out: Path, speeds: list[float], steps: int, error) -> None:
-    """One ``--out`` folder holds one design: its speeds and stances per trial are written
-    to ``design.json`` on the first run, and a later run (``--reuse``, ``--report-only``)
-    with another design stops with ``error`` instead of mixing the two."""
-    mark = out / "design.json"
+def design_of(speeds: list[float], steps: int, segments: int = 1) -> dict:
+    """A folder's design: speeds, stances per trial and (when not 1) replays per stance
+    (folders written before ``--replay-segments`` existed hold the first two only)."""
     design = {"speeds": speeds, "steps": steps}
+    if segments != 1:
+        design["replay_segments"] = segments
+    return design
+
+
+def check_design(out: Path, speeds: list[float], steps: int, error, segments: int = 1) -> None:
+    """One ``--out`` folder holds one design: its speeds, stances per trial and replays per
+    stance are written to ``design.json`` on the first run, and a later run (``--reuse``,
+    ``--report-only``) with another design stops with ``error`` instead of mixing the two."""
+    mark = out / "design.json"
+    design = design_of(speeds, steps, segments)
     if mark.is_file():
         old = json.loads(mark.read_text(encoding="utf-8"))
         if old != design:
             error(f"--out {out} holds cases of another design ({mark.name}: speeds "
-                  f"{old.get('speeds')}, steps {old.get('steps')}; asked: speeds {speeds}, "
-                  f"steps {steps}): use another --out, or the same --speeds and --steps")
+                  f"{old.get('speeds')}, steps {old.get('steps')}, replay segments "
+                  f"{old.get('replay_segments', 1)}; asked: speeds {speeds}, steps {steps}, "
+                  f"replay segments {segments}): use another --out, or the same "
+                  f"--speeds, --steps and --replay-segments")
         return
     mark.write_text(json.dumps(design), encoding="utf-8")
 
@@ -234,7 +246,7 @@ def check_design(out: Path, speeds: list[float], steps: int, error) -> None:
 def _child(args) -> None:
     case = Case(**json.loads(args.case))
     row = run_case(case, args.out, args.steps, args.n_boot, args.user_terms, args.measurement,
-                   args.reuse, tuple(args.speeds))
+                   args.reuse, tuple(args.speeds), args.replay_segments)
     (args.out / f"{case.tag}.json").write_text(json.dumps(row, indent=1, default=str),
                                                encoding="utf-8")
 
@@ -259,6 +271,8 @@ def main() -> None:
                     help="also pass the true form as a user term in the feedback run")
     ap.add_argument("--measurement", action="store_true",
                     help="add the measurement-model family to the candidates of both runs")
+    ap.add_argument("--replay-segments", type=int, default=1,
+                    help="replays per stance of every diagnosis (restarts mid-stance)")
     ap.add_argument("--workers", type=int, default=1, help="cases at a time")
     ap.add_argument("--out", type=Path, default=None, help="keep data and diagnoses here")
     ap.add_argument("--reuse", action="store_true",
@@ -272,6 +286,8 @@ def main() -> None:
     check_speeds(args.speeds, ap.error)
     if args.steps < 2:
         ap.error(f"--steps: {args.steps} — give at least 2 stances per trial")
+    if args.replay_segments < 1:
+        ap.error(f"--replay-segments: {args.replay_segments} — give 1 (whole stances) or more")
     if args.case:
         return _child(args)
     mismatches = () if args.no_nulls else tuple(args.mismatches)
@@ -283,7 +299,7 @@ def main() -> None:
         tmp = tempfile.TemporaryDirectory(prefix="out_of_library_")
         args.out = Path(tmp.name)
     args.out.mkdir(parents=True, exist_ok=True)
-    check_design(args.out, list(args.speeds), args.steps, ap.error)
+    check_design(args.out, list(args.speeds), args.steps, ap.error, args.replay_segments)
     cases = build_cases(args.forms, args.seeds, args.mag_index or args.magnitudes,
                         not args.no_pairs, mismatches)
     print(f"{len(cases)} cases in {args.out}", flush=True)
@@ -295,7 +311,8 @@ def main() -> None:
         if not ((args.reuse or args.report_only) and res.is_file()):
             cmd = [sys.executable, __file__, "--case", json.dumps(asdict(case)), "--out",
                    str(args.out), "--steps", str(args.steps), "--n-boot", str(args.n_boot),
-                   "--speeds", *map(str, args.speeds)]
+                   "--speeds", *map(str, args.speeds),
+                   "--replay-segments", str(args.replay_segments)]
             cmd += ["--user-terms"] if args.user_terms else []
             cmd += ["--measurement"] if args.measurement else []
             cmd += ["--reuse"] if args.reuse else []      # keep the noisy data sets there

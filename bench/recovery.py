@@ -1,7 +1,8 @@
 """Recovery study of ``diagnose``: hidden effect × seed × noise level, and the null test.
 
     python bench/recovery.py [--seeds 1 2 3] [--levels 0.5 1.0] [--effects NAME:k=v …]
-                             [--nulls 10] [--mismatch KEY=VALUE …] [--steps 9] [--out DIR [--reuse]] [--json PATH] [--quick]
+                             [--nulls 10] [--mismatch KEY=VALUE …] [--steps 9] [--replay-segments 1]
+                             [--out DIR [--reuse]] [--json PATH] [--quick]
     python bench/recovery.py --workbench [--out DIR] [--json PATH]
     python bench/recovery.py --retab STUDY.json DIR [--retab STUDY.json DIR …] [--json PATH]
 
@@ -83,11 +84,11 @@ SPEEDS = [0.1, 0.2, 0.3, 0.4, 0.5]
 
 
 def run_case(data: Path, effect: str | None, out: Path, seed: int,
-             mismatch: str | None = None) -> dict:
+             mismatch: str | None = None, segments: int = 1) -> dict:
     from granular_mpc.validation.diagnose import diagnose
 
     t0 = time.perf_counter()
-    diag = diagnose(data, out, seed=seed, n_boot=100)
+    diag = diagnose(data, out, seed=seed, n_boot=100, replay_segments=segments)
     row = {"added": ",".join(diag.added) or "-", "diagnose_s": time.perf_counter() - t0,
            "status": diag.verdict.status}
     if effect is None:
@@ -378,6 +379,8 @@ def main() -> None:
     ap.add_argument("--nulls", type=int, default=10, help="null seeds (× levels)")
     ap.add_argument("--steps", type=int, default=9, help="stances per trial (5 trials)")
     ap.add_argument("--out", type=Path, default=None, help="keep data and reports here")
+    ap.add_argument("--replay-segments", type=int, default=1,
+                    help="replays per stance of every diagnosis (restarts mid-stance)")
     ap.add_argument("--json", type=Path)
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--workbench", action="store_true",
@@ -388,6 +391,8 @@ def main() -> None:
                     help="re-tabulate a stored study (its summary JSON and data folder) with "
                          "the signal per case, without diagnosing; repeatable")
     args = ap.parse_args()
+    if args.replay_segments < 1:
+        ap.error(f"--replay-segments: {args.replay_segments} — give 1 (whole stances) or more")
     if args.retab:
         retabulate(args.retab, args.json)
         return
@@ -418,7 +423,8 @@ def main() -> None:
             data = root / f"{tag}_n{level:g}"
             if not (args.reuse and (data / "meta.yaml").is_file()):
                 noisy_copy(clean, data, level, seed=seed, overwrite=True)
-            row = run_case(data, effect, root / f"{tag}_n{level:g}_diag", seed, mismatch)
+            row = run_case(data, effect, root / f"{tag}_n{level:g}_diag", seed, mismatch,
+                           args.replay_segments)
             row.update(effect=effect or (f"mismatch {mismatch}" if mismatch else "none"),
                        seed=seed, noise=level)
             add_signal(row, root)

@@ -411,6 +411,11 @@ EffectFileOpt = Annotated[Optional[list[Path]], typer.Option(
     "--effect-file", metavar="FILE.py", help="Python file registering user effects (repeatable).")]
 TerrainOpt = Annotated[str, typer.Option("--terrain", help="The model's terrain (name in models/terrain or a path).")]
 WorkersOpt = Annotated[Optional[int], typer.Option("--workers", min=1, help="Processes for the replays (default: all CPUs).")]
+ReplaySegmentsOpt = Annotated[int, typer.Option(
+    "--replay-segments",
+    help="Replays per stance: the stance is replayed again from the measured state "
+         "mid-stance (multiple shooting; needs measured intrusion; docs/validation.md "
+         "§5.3.14).")]
 
 
 @app.command()
@@ -457,6 +462,7 @@ def validate(
     params: Annotated[Optional[Path], typer.Option("--params", help="diagnosis.json (or its folder) with calibrated and fitted parameters.")] = None,
     terrain: TerrainOpt = "dry_sand",
     effect_file: EffectFileOpt = None,
+    replay_segments: ReplaySegmentsOpt = 1,
     workers: WorkersOpt = None,
     debug: DebugOpt = False,
 ) -> None:
@@ -469,7 +475,8 @@ def validate(
                               allowed="granular, rigid, planar")
         _load_effect_files(effect_file)
         rep = run_validate(data_dir, out, model=model, effects=_effects(effect or []),
-                           params=params, terrain=terrain, workers=workers)
+                           params=params, terrain=terrain, workers=workers,
+                           replay_segments=replay_segments)
         for ch, d in rep.report.get("before_after", {}).items():
             if d["change_pct"] is not None:
                 print(f"{ch}: RMSE {d['before']:.4g} -> {d['after']:.4g} "
@@ -487,6 +494,7 @@ def diagnose(
     effect_file: EffectFileOpt = None,
     measurement: Annotated[bool, typer.Option("--measurement", help="Also test the measurement model: per-joint torque gain/offset, encoder offsets and gains, force-sensor gain, torque time offset, trunk attitude bias (granular_mpc.effects.measurement).")] = False,
     variants: Annotated[bool, typer.Option("--variants", help="Also test per-foot and layered variants of the terrain law: stress_scale_left/right (one foot's track of other sand, a worn sole), stress_scale, hard_layer (granular_mpc.effects.variants).")] = False,
+    replay_segments: ReplaySegmentsOpt = 1,
     workers: WorkersOpt = None,
     debug: DebugOpt = False,
 ) -> None:
@@ -505,7 +513,7 @@ def diagnose(
             for c in candidate:
                 _effects([c])
         res = run_diagnose(data_dir, out, candidates=candidate or None, seed=seed,
-                           terrain=terrain, workers=workers)
+                           terrain=terrain, workers=workers, replay_segments=replay_segments)
         print(res.verdict.text)
         print(f"wrote {out / 'diagnosis.json'}")
 

@@ -18,6 +18,7 @@ SCRIPT = Path(__file__).resolve().parent.parent / "bench" / "out_of_library.py"
     (["--speeds", "0.2", "-3"],
      "--speeds: speed: Input should be greater than or equal to -1 (got -3.0)"),
     (["--steps", "1"], "--steps: 1"),
+    (["--replay-segments", "0"], "--replay-segments: 0"),
 ])
 def test_a_design_out_of_range_stops_before_any_case(tmp_path, args, message):
     out = tmp_path / "out"
@@ -39,5 +40,8 @@ def test_one_out_folder_holds_one_design(tmp_path):
     assert errors == []
     check_design(tmp_path, [0.15, 0.2, 0.3, 0.35], 11, errors.append)
     assert len(errors) == 1
-    assert "speeds [0.15, 0.25, 0.35], steps 7" in errors[0]
-    assert "asked: speeds [0.15, 0.2, 0.3, 0.35], steps 11" in errors[0]
+    assert "speeds [0.15, 0.25, 0.35], steps 7, replay segments 1" in errors[0]
+    assert "asked: speeds [0.15, 0.2, 0.3, 0.35], steps 11, replay segments 1" in errors[0]
+    # the same speeds and stances, replayed in two segments per stance: another design
+    check_design(tmp_path, [0.15, 0.25, 0.35], 7, errors.append, 2)
+    assert len(errors) == 2 and "asked: speeds [0.15, 0.25, 0.35], steps 7, replay segments 2" in errors[1]

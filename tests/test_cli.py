@@ -312,6 +312,17 @@ def test_validate_rejects_a_negative_worker_count(tmp_path, data_dir):
     assert res.exit_code == 2 and "greater than or equal to 1" in res.output
 
 
+def test_replay_segments_below_one_or_off_the_granular_model_are_exit_2(tmp_path, data_dir):
+    out = tmp_path / "v"
+    _exit_2_no_traceback(invoke("validate", data_dir, "--out", out, "--replay-segments", "0"),
+                         "replay_segments", "integer ≥ 1")
+    _exit_2_no_traceback(invoke("validate", data_dir, "--out", out, "--model", "rigid",
+                                "--replay-segments", "2"), "replay_segments", "granular")
+    _exit_2_no_traceback(invoke("diagnose", data_dir, "--out", tmp_path / "d",
+                                "--replay-segments", "-1"), "replay_segments", "integer ≥ 1")
+    assert not out.exists() and not (tmp_path / "d").exists()
+
+
 def test_missing_data_folder_is_exit_2(tmp_path, data_dir):
     _exit_2_no_traceback(invoke("validate", data_dir, "--out", tmp_path / "v"), "no_data")
 

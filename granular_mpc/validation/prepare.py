@@ -62,6 +62,8 @@ from .dataformat.channels import ChannelGroup, ChannelSet
 from .contact_estimation import estimate_foot_forces, refined_landing
 from .estimation import contact_offsets, estimate_trunk
 from .foot_geometry import contact_point_rows, foot_pitch, foot_pitch_rows, patch_points
+from .foot_state import FootInit, foot_init
+from .restarts import Restart, stance_restarts
 from .scored_channels import (CHANNEL_UNITS, REPLAY_REQUIRED, SCORED_GROUPS,  # noqa: F401
                               channel_names, channel_unit, check_replayable)
 
@@ -69,34 +71,6 @@ from .scored_channels import (CHANNEL_UNITS, REPLAY_REQUIRED, SCORED_GROUPS,  # 
 #: a touchdown window's free surface is the mean of (the stance foot's height + measured
 #: intrusion) over this many first samples of the phase [samples]
 SURFACE_SAMPLES = 15
-
-
-@dataclass(frozen=True)
-class FootInit:
-    """Initial contact state of one foot in the local frame.
-
-    Attributes:
-        in_contact: the foot starts in contact.
-        surface: free-surface height under the foot [m] (local frame, plane through it).
-        depth: depth of the contact point below that surface [m].
-        point: contact point (mean over patches) at the window start [m] (local frame).
-        c0: touchdown point per patch [m] (local frame), shape (n_patches, 3).
-        e: elastic displacement per patch [m] (−F/(n K)), shape (n_patches, 3).
-        force: measured force on the foot [N] (world axes); without foot force, the
-            force estimated from the joint torques.
-        depth_max: deepest depth since touchdown [m].
-        t_stance: time since touchdown [s].
-    """
-
-    in_contact: bool
-    surface: float
-    depth: float
-    point: np.ndarray
-    c0: np.ndarray
-    e: np.ndarray
-    force: np.ndarray
-    depth_max: float
-    t_stance: float
 
 
 @dataclass(frozen=True)
@@ -124,6 +98,8 @@ class StanceWindow:
             (``time``, ``q_*``, ``dq_*``, ``tau_*``, ``base_*``, ``grf_*``,
             ``intrusion_*``) → (n,) arrays: what a sensor effect reads besides the
             replayed channels.
+        restarts: where the replay starts again from the measured state
+            (:mod:`.restarts`; empty: one replay over the whole stance).
     """
 
     index: int
@@ -144,6 +120,7 @@ class StanceWindow:
     meas: dict
     features: dict = field(default_factory=dict)
     columns: dict = field(default_factory=dict)
+    restarts: tuple[Restart, ...] = ()
 
     @property
     def n(self) -> int:
@@ -358,24 +335,6 @@ class TrialStates:
         raise IndexError(k)
 
 
-def _foot_init(biped: Biped, data: pin.Data, side: str, *, depth: float,
-               intrusion: np.ndarray, force: np.ndarray, in_contact: bool, depth_max: float,
-               t_stance: float, K: float, origin: np.ndarray) -> FootInit:
-    oMf = data.oMf[biped.foot_frame[side]]
-    pts = patch_points(biped, oMf) - origin          # local frame
-    n = len(pts)
-    point = pts.mean(axis=0)
-    surface = float(point[2] + depth)            # depth < 0: the foot is above the surface
-    depth = max(float(depth), 0.0)
-    if not in_contact:
-        return FootInit(False, surface, 0.0, point, np.zeros((n, 3)), np.zeros((n, 3)),
-                        np.zeros(3), 0.0, 0.0)
-    c0 = pts - np.array([intrusion[0], intrusion[1], -depth])
-    e = np.tile(-np.asarray(force, dtype=float) / (n * K), (n, 1))
-    return FootInit(True, surface, depth, point, c0, e, np.asarray(force, dtype=float),
-                    max(float(depth_max), depth), float(t_stance))
-
-
 def _foot_kinematics(biped: Biped, data: pin.Data, st: "TrialStates", side: str, a: int,
                      b: int) -> dict:
     """Per row of [a, b): foot pitch ψ_c [rad], contact-point (material) velocity v_c [m/s]
@@ -438,7 +397,7 @@ def _stance_channels(st: "TrialStates", biped: Biped, data: pin.Data, side: str,
 
 def stance_windows(ds: Dataset, biped: Biped, *, contact_stiffness: float = 2.0e5,
                    smooth_window: int = 15, min_samples: int = 20,
-                   touchdown_depth: float = 3e-3) -> list[StanceWindow]:
+                   touchdown_depth: float = 3e-3, segments: int = 1) -> list[StanceWindow]:
     """Every complete stance phase of ``ds`` as a :class:`StanceWindow`.
 
     A phase whose first samples show the stance foot at (almost) zero intrusion (median
@@ -460,6 +419,8 @@ def stance_windows(ds: Dataset, biped: Biped, *, contact_stiffness: float = 2.0e
         smooth_window: Savitzky–Golay window [samples].
         min_samples: shorter stance runs are skipped (contact flicker).
         touchdown_depth: see above [m].
+        segments: replay segments per stance: the replay restarts from the measured
+            state ``segments − 1`` times, where that state is measured (:mod:`.restarts`).
 
     Raises:
         DataFormatError: the data set lacks a group a replay needs (:func:`check_replayable`).
@@ -489,14 +450,15 @@ def stance_windows(ds: Dataset, biped: Biped, *, contact_stiffness: float = 2.0e
             out.append(_window(len(out), st, arrays, biped, data, ph._replace(trial=trial), J,
                                scored, float(speed),
                                contact_stiffness, smooth_window, touchdown_depth, fs,
-                               starts[n_ph], stop, st.surface_rows[n_ph]))
+                               starts[n_ph], stop, st.surface_rows[n_ph], segments))
     return out
 
 
 def _window(index: int, st: TrialStates, arrays: dict, biped: Biped, data: pin.Data,
             ph, J: list, scored: list, speed: float, contact_stiffness: float,
             smooth_window: int, touchdown_depth: float, fs: float,
-            start: int, stop: int, surface_row: int | None = None) -> StanceWindow:
+            start: int, stop: int, surface_row: int | None = None,
+            segments: int = 1) -> StanceWindow:
     """One stance phase as a :class:`StanceWindow` (see :func:`stance_windows`), over the
     rows [start, stop) (the phase's rows, or its kinematic touchdown to the next one's);
     ``arrays``: the trial's columns as float arrays (the scored and the format's)."""
@@ -546,11 +508,11 @@ def _window(index: int, st: TrialStates, arrays: dict, biped: Biped, data: pin.D
     lead_depth = surface_W - c_W[2]
     K = contact_stiffness
     if touchdown:
-        lead = _foot_init(biped, data, side, depth=lead_depth, intrusion=np.zeros(3),
+        lead = foot_init(biped, data, side, depth=lead_depth, intrusion=np.zeros(3),
                           force=np.zeros(3), in_contact=False, depth_max=0.0,
                           t_stance=0.0, K=K, origin=origin)
     else:
-        lead = _foot_init(biped, data, side, depth=lead_depth, intrusion=st.intr_s[a],
+        lead = foot_init(biped, data, side, depth=lead_depth, intrusion=st.intr_s[a],
                           force=st.grf_s[a] if st.has_force else np.zeros(3), in_contact=True,
                           depth_max=float(st.intr_s[a, 2]), t_stance=0.0, K=K, origin=origin)
     # the trailing foot: in contact if the run before the phase was its stance
@@ -562,7 +524,7 @@ def _window(index: int, st: TrialStates, arrays: dict, biped: Biped, data: pin.D
             # its deepest depth is its depth now: it carried the single-support load up to
             # this sample (the maximum of the noisy intrusion over the run is biased deep,
             # a spurious elastic rebound: docs/validation.md §2, "The trailing foot")
-            trail = _foot_init(biped, data, other, depth=float(st.intr_s[kt, 2]),
+            trail = foot_init(biped, data, other, depth=float(st.intr_s[kt, 2]),
                                intrusion=st.intr_s[kt], force=force, in_contact=True,
                                depth_max=float(st.intr_s[kt, 2]),
                                t_stance=float(st.time[kt] - st.time[pa]), K=K,
@@ -572,13 +534,13 @@ def _window(index: int, st: TrialStates, arrays: dict, biped: Biped, data: pin.D
             # foot at its kinematic depth below it, at its deepest point
             z_t = patch_points(biped, data.oMf[biped.foot_frame[other]])[:, 2].mean()
             depth = float(surface_W - z_t)
-            trail = _foot_init(biped, data, other, depth=depth, intrusion=np.zeros(3),
+            trail = foot_init(biped, data, other, depth=depth, intrusion=np.zeros(3),
                                force=force, in_contact=depth > 0.0,
                                depth_max=max(depth, 0.0),
                                t_stance=float(st.time[kt] - st.time[pa]), K=K,
                                origin=origin)
     else:
-        trail = _foot_init(biped, data, other, depth=0.0, intrusion=np.zeros(3),
+        trail = foot_init(biped, data, other, depth=0.0, intrusion=np.zeros(3),
                            force=np.zeros(3), in_contact=False, depth_max=0.0,
                            t_stance=0.0, K=K, origin=origin)
     feet = [None, None]
@@ -613,7 +575,10 @@ def _window(index: int, st: TrialStates, arrays: dict, biped: Biped, data: pin.D
         phase=100.0 * t / max(t_ph[-1] - t_ph[0], 1e-9),
         q0=q_loc, v0=v0, tau=st.tau[k0:b - 1].copy(), feet=tuple(feet), origin=origin,
         touchdown_W=np.array([c_W[0], c_W[1], surface_W]), meas=meas, features=feats,
-        columns={c: arrays[c][r0:b] for c in format_columns(J) if c in arrays})
+        columns={c: arrays[c][r0:b] for c in format_columns(J) if c in arrays},
+        restarts=stance_restarts(st, biped, data, side=side, k0=k0, stop=b, origin=origin,
+                                 trail=trail, K=K, segments=segments,
+                                 min_depth=touchdown_depth))
 
 
 def windows_frame(windows: Sequence[StanceWindow], values: Sequence[dict] | None = None,
@@ -634,7 +599,7 @@ def windows_frame(windows: Sequence[StanceWindow], values: Sequence[dict] | None
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
 
-__all__ = ["StanceWindow", "FootInit", "TrialStates", "stance_windows", "windows_frame",
+__all__ = ["StanceWindow", "FootInit", "Restart", "TrialStates", "stance_windows", "windows_frame",
            "SURFACE_SAMPLES", "PAST_FIT_DEGREE",
            "channel_names", "channel_unit", "check_replayable", "patch_points", "foot_pitch",
            "AXES", "REPLAY_REQUIRED", "SCORED_GROUPS", "CHANNEL_UNITS"]

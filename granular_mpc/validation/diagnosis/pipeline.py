@@ -18,6 +18,7 @@ from ...effects import load_effect_file
 from ...output import make_output_folder
 from ..dataformat import load_dataset
 from ..replay.pool import ReplayPool
+from ..restarts import check_segments
 from .calibration import calibrate_model
 from .candidates import (CandidateSet, build_candidates, check_sensor_candidates, drop_dead_candidates,
                          drop_uninvertible_sensor_candidates,
@@ -62,7 +63,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
              workers: int | None = None, n_boot: int = 200, phase_bins: int = 10,
              max_effects: int = 2, refine_iterations: int = 2,
              calibrate_params: Sequence[str] = ("zeta",), max_contenders: int = 2,
-             effect_files: Sequence[str | Path] = (), figures: bool = True) -> Diagnosis:
+             effect_files: Sequence[str | Path] = (), figures: bool = True,
+             replay_segments: int = 1) -> Diagnosis:
     """Calibrate the model on a data set, then find, rank and localise missing effects.
 
     Args:
@@ -88,19 +90,26 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
         effect_files: user Python files registering effects (imported first; their
             effects become candidates).
         figures: write figures and the one-page report.
+        replay_segments: replays per stance: each stance is replayed again from the
+            measured state ``replay_segments − 1`` times (multiple shooting within the
+            stance, :mod:`~granular_mpc.validation.restarts`; needs measured intrusion).
+            Shorter replays drift less from noisy first states; ``docs/validation.md``
+            §5.3.14 measures what that does to the diagnosis (default 1: whole stances).
 
     Returns:
         :class:`~.result.Diagnosis`.
     """
     t_start = _time.perf_counter()
     timing: dict[str, float] = {}
+    replay_segments = check_segments(replay_segments)
     for f in effect_files:
         load_effect_file(str(f))
     ds = load_dataset(data_dir)
     # checked before the replays, so that a bad folder does not cost the computation
     out = make_output_folder(out_dir) if out_dir is not None else None
     cands = build_candidates(candidates)
-    problem = load_problem(data_dir, terrain=terrain, sim=sim, phase_bins=phase_bins, dataset=ds)
+    problem = load_problem(data_dir, terrain=terrain, sim=sim, phase_bins=phase_bins, dataset=ds,
+                           segments=replay_segments)
     # declared channels (coverage.py): score the measured ones; sensor candidates reading
     # an unmeasured column cannot be assessed
     problem = measured_problem(problem, ds)
@@ -181,7 +190,7 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
         NEffFactor(scr.regressions.systematic.n_eff_factor, scr.regressions.stance.n_eff_factor),
         dict(scr.regressions.systematic.sigma), scr.builder.group_unit, len(reg.splits),
         res.diverged, res.jumps, {n: i.kind for n, i in cands.infos.items()}, pool.n_replays,
-        ref.steps)
+        ref.steps, replay_segments)
     timing["total"] = _time.perf_counter() - t_start
     diag = Diagnosis(
         str(data_dir), verdict,

@@ -59,9 +59,10 @@ class Problem:
 
 
 def load_problem(data_dir: str | Path, *, terrain: Any = "dry_sand", sim: SimConfig | None = None,
-                 phase_bins: int = 10, dataset=None) -> Problem:
+                 phase_bins: int = 10, dataset=None, segments: int = 1) -> Problem:
     """Load the data set (or use ``dataset``), cut it into stance windows and set up the
-    channels and phase bins.
+    channels and phase bins; ``segments``: replay segments per stance
+    (:mod:`~granular_mpc.validation.restarts`).
 
     Raises:
         GranularMpcError: fewer than :data:`MIN_WINDOWS` complete stance phases.
@@ -72,7 +73,8 @@ def load_problem(data_dir: str | Path, *, terrain: Any = "dry_sand", sim: SimCon
     # its terrain and contact stiffness are what the stages use: no compiled plant
     rm0 = build_replay_model(biped, cfg0, sample_rate_hz=ds.meta.sample_rate_hz, sim=sim,
                              compile_plant=False)
-    windows = stance_windows(ds, biped, contact_stiffness=rm0.contact_stiffness)
+    windows = stance_windows(ds, biped, contact_stiffness=rm0.contact_stiffness,
+                             segments=segments)
     if len(windows) < MIN_WINDOWS:
         raise GranularMpcError(f"{data_dir}: {len(windows)} complete stance phases; the "
                                f"diagnosis needs at least {MIN_WINDOWS}")

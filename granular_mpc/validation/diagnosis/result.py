@@ -203,6 +203,7 @@ class DesignSummary(Record):
     candidates: Mapping[str, str]
     replays: int
     steps: tuple[SelectionStep, ...]
+    replay_segments: int = 1
 
 
 @dataclass(frozen=True)

@@ -50,16 +50,43 @@ def _in_world(fi: FootInit, origin: np.ndarray) -> FootInit:
                    c0=fi.c0 + origin)
 
 
+def segment_windows(w: StanceWindow) -> list[StanceWindow]:
+    """``w`` cut at its restarts (:mod:`~..restarts`): one window per replay segment, each
+    with its own first state and the samples, torques and columns of its part; ``[w]``
+    without restarts."""
+    if not w.restarts:
+        return [w]
+    cuts = [0, *(r.start for r in w.restarts), w.n]
+    firsts = [(w.q0, w.v0, w.feet), *((r.q0, r.v0, r.feet) for r in w.restarts)]
+    out = []
+    for (a, b), (q0, v0, feet) in zip(zip(cuts[:-1], cuts[1:]), firsts):
+        sl = slice(a, b)
+        out.append(replace(w, q0=q0, v0=v0, feet=feet, tau=w.tau[sl], time=w.time[sl],
+                           phase=w.phase[sl], meas={c: v[sl] for c, v in w.meas.items()},
+                           features={c: v[sl] for c, v in w.features.items()},
+                           columns={c: v[sl] for c, v in w.columns.items()}, restarts=()))
+    return out
+
+
 def replay_granular(model: ReplayModel, w: StanceWindow, variant: Variant) -> dict:
-    """Replay one window on the 3-D plant with the measured torques.
+    """Replay one window on the 3-D plant with the measured torques (segment by segment
+    when the window has restarts: :func:`segment_windows`).
 
     Returns:
         ``{channel: (n,) array}`` for :func:`~.prepare.channel_names` plus ``other_grf_z``
-        (the other foot's vertical force) and ``diverged`` (bool). Sensor effects of the
-        variant are applied to the outputs.
+        (the other foot's vertical force) and ``diverged`` (bool: some segment diverged).
+        Sensor effects of the variant are applied to the outputs.
     """
+    parts = [_replay_segment(model, seg, variant) for seg in segment_windows(w)]
+    qa, grf, intr, other = (np.concatenate([p[k] for p in parts]) for k in range(4))
+    diverged = any(p[4] for p in parts)
+    return replay_outputs(qa, grf, intr, other, diverged, variant, w, model.biped.joint_names)
+
+
+def _replay_segment(model: ReplayModel, w: StanceWindow, variant: Variant) -> tuple:
+    """One replay from the window's first state: (q_a, stance-foot force, intrusion, other
+    foot's vertical force, diverged), one row per sample."""
     biped = model.biped
-    scored = w
     w = true_window(biped, w, variant)
     origin = np.array([w.origin[0], w.origin[1], 0.0])
     q0 = w.q0.copy()
@@ -88,10 +115,8 @@ def replay_granular(model: ReplayModel, w: StanceWindow, variant: Variant) -> di
             side = SIDES[i]
             pts = patch_points(biped, d.pin.oMf[biped.foot_frame[side]])
             set_foot_state(buf, fi, _patch_velocity(biped, d.pin, side, pts))
-    J = biped.joint_names
     run = _run_compiled if fast else _run_reference
-    qa, grf, intr, other, diverged = run(plant, d, w, model.steps_per_sample)
-    return replay_outputs(qa, grf, intr, other, diverged, variant, scored, J)
+    return run(plant, d, w, model.steps_per_sample)
 
 
 def _run_reference(plant, d, w: StanceWindow, sps: int) -> tuple:
@@ -156,4 +181,4 @@ def set_joint_params(plant: FastPlant, d, variant: Variant) -> None:
         k0 += len(info.params)
 
 
-__all__ = ["replay_granular", "set_joint_params"]
+__all__ = ["replay_granular", "segment_windows", "set_joint_params"]

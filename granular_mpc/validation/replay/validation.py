@@ -29,6 +29,7 @@ from ..channel_coverage import channel_coverage
 from ..dataformat import load_dataset
 from ..diagnosis.result import DIAGNOSIS_FILE, FittedParameters
 from ..prepare import StanceWindow, channel_names, channel_unit, stance_windows, windows_frame
+from ..restarts import check_segments
 from .measurement import check_sensor_inversion, check_sensor_specs
 from .model import (MODELS, REPLAY_PARAMS, Variant, build_replay_model, effect_variant,
                     model_terrain, resolve_effect_specs)
@@ -109,7 +110,8 @@ def validate(data_dir: str | Path, out_dir: str | Path | None = None, *,
              params: str | Path | Mapping | None = None, terrain: Any = "dry_sand",
              sim: SimConfig | None = None, phase_bins: int = 10, n_boot: int = 1000,
              workers: int | None = None, figures: bool = True, seed: int = 0,
-             effect_files: Sequence[str | Path] = ()) -> ValidationReport:
+             effect_files: Sequence[str | Path] = (),
+             replay_segments: int = 1) -> ValidationReport:
     """Replay every complete stance of a data set and score the model against it.
 
     Args:
@@ -130,6 +132,9 @@ def validate(data_dir: str | Path, out_dir: str | Path | None = None, *,
         figures: write the figures.
         seed: bootstrap seed.
         effect_files: user Python files registering effects (imported first).
+        replay_segments: replays per stance of the ``granular`` model: each stance is
+            replayed again from the measured state ``replay_segments − 1`` times
+            (:mod:`~granular_mpc.validation.restarts`; needs measured intrusion).
 
     Returns:
         :class:`ValidationReport`.
@@ -137,6 +142,10 @@ def validate(data_dir: str | Path, out_dir: str | Path | None = None, *,
     t0 = _time.perf_counter()
     if model not in MODELS:
         raise ConfigError(f"unknown model {model!r}", key="model", allowed=", ".join(MODELS))
+    if check_segments(replay_segments) > 1 and model != "granular":
+        raise ConfigError(f"restarts within a stance are replayed by the granular model only, "
+                          f"not {model!r}", key="replay_segments", value=replay_segments,
+                          allowed="1 with the rigid and planar models")
     for f in effect_files:
         load_effect_file(str(f))
     ds = load_dataset(data_dir)
@@ -149,7 +158,8 @@ def validate(data_dir: str | Path, out_dir: str | Path | None = None, *,
     terrain_names = [i.name for i, _ in specs if i.kind == "terrain_force"]
     rm = build_replay_model(biped, cfg, sample_rate_hz=ds.meta.sample_rate_hz, sim=sim,
                             terrain_effects=terrain_names)
-    windows = stance_windows(ds, biped, contact_stiffness=rm.contact_stiffness)
+    windows = stance_windows(ds, biped, contact_stiffness=rm.contact_stiffness,
+                             segments=replay_segments)
     if not windows:
         raise GranularMpcError(f"{data_dir}: no complete stance phase to replay")
     J = list(ds.joint_names)
@@ -181,6 +191,8 @@ def validate(data_dir: str | Path, out_dir: str | Path | None = None, *,
         "channels": channels, "units": {c: channel_unit(c) for c in channels},
         "coverage": coverage.to_dict(),
         "phase_bins": phase_bins,
+        "replay_segments": replay_segments,
+        "restarts": int(sum(len(w.restarts) for w in windows)),
         "interval": {"ci": 0.95, "n_boot": n_boot,
                      "unit": tables[model]["overall"]["interval_unit"].iloc[0]},
         "diverged_stances": n_div,
