@@ -32,6 +32,9 @@ starts buried at its last measured intrusion, loaded with its last measured forc
 its deepest depth and its time in stance from that run. Each foot gets its own free
 surface at its measured depth below its contact point (per-foot ``surface_height``).
 
+**Restarts** (``segments`` > 1): a window may also carry states mid-stance from which
+its replay starts again (:mod:`.restarts`; off by default).
+
 **Declared channels** (``Dataset.channels``): only measured groups are read and scored
 (:func:`channel_names`), an absent one is never replaced by zeros; without trunk position
 / velocity they are estimated by leg odometry (:mod:`.estimation`), without intrusion the
