@@ -66,18 +66,19 @@ def rate_errors(truth, ds, cut, copy: str) -> dict:
 
     J = list(truth.joint_names)
     dt = 1.0 / truth.meta.sample_rate_hz
+    cols = {t: (truth.trials[t][joint_columns(J, "dq")].to_numpy(float),
+                ds.trials[t][joint_columns(J, "q")].to_numpy(float),
+                ds.trials[t][joint_columns(J, "dq")].to_numpy(float)) for t in truth.trials}
     errs: dict = {}
     for w in cut:
+        exact_dq, q, raw_dq = cols[w.trial]
         for r in w.restarts:
             k = w.row_start - 1 + r.start            # the row of the restart's state
-            exact = truth.trials[w.trial][joint_columns(J, "dq")].to_numpy(float)[k]
-            q = ds.trials[w.trial][joint_columns(J, "q")].to_numpy(float)
             for name, (deg, n) in RATE_ESTIMATORS.items():
                 est = savgol_filter(q[k - n // 2:k + n // 2 + 1], n, deg, deriv=1, delta=dt,
                                     axis=0)[n // 2]
-                errs.setdefault(f"rate_rms.{name}.{copy}", []).append(est - exact)
-            raw = ds.trials[w.trial][joint_columns(J, "dq")].to_numpy(float)[k]
-            errs.setdefault(f"rate_rms.raw.{copy}", []).append(raw - exact)
+                errs.setdefault(f"rate_rms.{name}.{copy}", []).append(est - exact_dq[k])
+            errs.setdefault(f"rate_rms.raw.{copy}", []).append(raw_dq[k] - exact_dq[k])
     return {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in errs.items()}
 
 
