@@ -254,7 +254,9 @@ def _child(args) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--forms", nargs="*", default=[f.name for f in FORMS],
-                    choices=[f.name for f in FORMS])
+                    choices=list(FORM_BY_NAME),
+                    help="forms to run (default: every one of FORMS; the held-out "
+                    "EXTRA_FORMS soft_bed, ratio_layer only when named)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--magnitudes", type=int, default=2, choices=(1, 2))
     ap.add_argument("--steps", type=int, default=7, help="stances per trial")

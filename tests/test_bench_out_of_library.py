@@ -45,3 +45,29 @@ def test_one_out_folder_holds_one_design(tmp_path):
     # the same speeds and stances, replayed in two segments per stance: another design
     check_design(tmp_path, [0.15, 0.25, 0.35], 7, errors.append, 2)
     assert len(errors) == 2 and "asked: speeds [0.15, 0.25, 0.35], steps 7, replay segments 2" in errors[1]
+
+
+def test_the_held_out_layer_forms_act_below_their_interface_only():
+    """The opt-in held-out layers (``EXTRA_FORMS``, not in the default run): a soft bed
+    under a 12 mm crust takes k·(d − 12 mm) off the vertical force below it; a ratio layer
+    scales the law's force by 1 + g·(d − 17 mm)/d below 17 mm; neither acts above."""
+    from dataclasses import replace
+
+    sys.path.insert(0, str(SCRIPT.parent))
+    from ool_forms import EXTRA_FORMS, FORMS, ratio_layer, soft_bed
+
+    from granular_mpc.effects.state import PatchState
+    from granular_mpc.terrain.closed_form import FLOAT
+
+    assert {f.name for f in EXTRA_FORMS} == {"soft_bed", "ratio_layer"}
+    assert not {f.name for f in EXTRA_FORMS} & {f.name for f in FORMS}
+    s = PatchState(depth=0.02, in_contact=1.0, p_c=(0.0, 0.0, -0.02), v_c=(0.1, 0.0, -0.3),
+                   a_c=(0.0, 0.0, 0.0), intrusion=(0.0, 0.0, 0.02), heading=(1.0, 0.0),
+                   lateral=(0.0, 1.0), f_terrain=(4.0, 0.0, 50.0), f_yield_z=50.0,
+                   area_h=0.002, width=0.04, density=1500.0, dt=5e-4)
+    assert soft_bed(FLOAT, s, 300.0)[2] == pytest.approx(-300.0 * 0.008)
+    assert soft_bed(FLOAT, replace(s, depth=0.01), 300.0)[2] == pytest.approx(0.0)
+    f = ratio_layer(FLOAT, s, 2.0)
+    assert f[2] == pytest.approx(2.0 * 0.003 / 0.02 * 50.0)
+    assert f[0] == pytest.approx(2.0 * 0.003 / 0.02 * 4.0)
+    assert ratio_layer(FLOAT, replace(s, depth=0.015), 2.0) == pytest.approx((0.0, 0.0, 0.0))

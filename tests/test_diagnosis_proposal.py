@@ -411,3 +411,72 @@ def test_a_share_below_minus_one_is_not_a_per_foot_law():
     coef = fit.coef.copy()
     coef[k] = -5.0
     assert not physical_shares(replace(fit, coef=coef))
+
+
+@pytest.mark.parametrize("law,coef", [("below_15mm", 4000.0), ("below_20mm", -3000.0)])
+def test_layer_stage_recovers_a_layer_below_an_interface(law, coef):
+    """A force that acts only below an interface depth, an extra stiffness k·(d − d_L)⁺
+    (a harder bed, k > 0; a looser bed under a crust, k < 0), under a null-like pattern
+    and noise: the best law of the vertical axis is that layer law, at its interface, with
+    its coefficient within 15 %. (The toy's law is ∝ depth, so its share below d_L,
+    ``law_below_*``, is the same column; the tie goes to the stiffness, tried first.)"""
+    from granular_mpc.validation.diagnosis.proposal import best_law
+
+    fs = _samples(law, coef, pattern=1.0, seed=7, law_nuisance=True)
+    fit, stage = best_law(fs, "z", seed=0)
+    assert stage == "layer"
+    _assert_recovered(fit, law, coef, "z")
+    assert fit.selected.sum() == 1
+
+
+@pytest.mark.parametrize("seed", [3, 4, 5])
+def test_layer_stage_proposes_nothing_on_a_null_residual(seed):
+    """Noise plus the null-like pattern, no layer: no law of the vertical axis passes."""
+    from granular_mpc.validation.diagnosis.proposal import best_law
+
+    fit, stage = best_law(_samples(pattern=3.0, seed=seed, law_nuisance=True), "z", seed=0)
+    assert fit is None and stage == ""
+
+
+def test_layer_features_stay_out_of_the_whole_library_fit():
+    """The layer laws are tried alone only: the whole-library fit never selects one, even
+    where a layer is the truth (a hinge at a grid of depths beside depth and depth² is a
+    flexible curve that fits the closed form's own null pattern)."""
+    from granular_mpc.validation.diagnosis.proposal import LAYER_FEATURES, library_fit
+
+    fit = library_fit(_samples("below_15mm", 4000.0, pattern=1.0, seed=7), "z", seed=0)
+    layer = [feature_names().index(n) for n in LAYER_FEATURES["z"]]
+    assert fit.selected.any() and not fit.selected[layer].any()
+
+
+def test_a_layer_splits_the_samples_or_is_not_tried():
+    """An interface above (nearly) every sinking sample, or below (nearly) every one, is
+    not a layer the samples can show: it is not tried."""
+    from granular_mpc.validation.diagnosis.proposal import MIN_LAYER_SHARE, layer_splits
+
+    fs = _samples(seed=1)
+    depth = fs.features[:, feature_names().index("depth")]
+    for name in ("below_5mm", "below_15mm", "below_30mm"):
+        share = float(np.mean(depth > float(name[6:-2]) * 1e-3))
+        assert layer_splits(fs, name) == (MIN_LAYER_SHARE <= share <= 1 - MIN_LAYER_SHARE)
+    assert layer_splits(fs, "below_15mm") and not layer_splits(fs, "below_30mm")
+
+
+def test_effect_file_of_a_layer_acts_below_its_interface_only(tmp_path):
+    """A proposed stiffness below 15 mm: zero on a patch above the interface, k·(d − d_L)
+    per patch below it; the law's share below the interface scales f_terrain by
+    g·(d − d_L)/d."""
+    terms = (ProposedTerm("z", "below_15mm", feature("below_15mm").description, 4000.0,
+                          2000.0, 100.0, "N/(m)", 1.0, True),
+             ProposedTerm("z", "law_below_15mm", feature("law_below_15mm").description, 0.5,
+                          0.5, 0.01, "-", 1.0, True))
+    prop = Proposal("test_layer_force", "", terms,
+                    (AxisFit("z", 0.7, 0.7, 11.0, 5.0, 0.3, True, "layer"),), 300, 24)
+    path = tmp_path / "layer.py"
+    path.write_text(effect_source(prop, "data"), encoding="utf-8")
+    assert load_effect_file(str(path)) == ["test_layer_force"]
+    info = effect_info("test_layer_force")
+    p = {"z_below_15mm": 2000.0, "z_law_below_15mm": 0.5}
+    deep, shallow = replace(_patch(-0.5), depth=0.025), replace(_patch(-0.5), depth=0.010)
+    assert info.fn(FLOAT, deep, p)[2] == pytest.approx(2000.0 * 0.010 + 0.5 * 50.0 * 0.4)
+    assert info.fn(FLOAT, shallow, p)[2] == pytest.approx(0.0)

@@ -47,6 +47,9 @@ class Feature:
         relative: a share of the terrain law's own force (a foot-level coefficient is
             then the same per patch), not a force per unit of a state (divided among the
             foot's patches).
+        in_library: whether the whole-library fit (the proposal's ``library`` stage) uses
+            it; the depth-layer features are fitted only alone, in their own stage
+            (:data:`LAYER_DEPTHS`).
     """
 
     name: str
@@ -55,6 +58,7 @@ class Feature:
     patch_expression: str
     compute: Callable[[Mapping[str, np.ndarray]], np.ndarray]
     relative: bool = False
+    in_library: bool = True
 
     @property
     def expressible(self) -> bool:
@@ -71,7 +75,7 @@ _F_H = "(s.f_terrain[0] * s.heading[0] + s.f_terrain[1] * s.heading[1])"
 #: Foot identity enters as a constant on the right foot and as the right foot's share of
 #: the law's own force (a right track of other sand, or a worn right sole): with ζ free
 #: (the law's common scale), a left-foot version of either would duplicate it.
-FEATURES: tuple[Feature, ...] = (
+_STATE_FEATURES: tuple[Feature, ...] = (
     Feature("contact", "constant force while in contact", "1", "s.in_contact",
             lambda c: np.ones_like(c["depth"])),
     Feature("depth", "depth of the sole below the free surface", "m", "s.depth",
@@ -104,6 +108,42 @@ FEATURES: tuple[Feature, ...] = (
             "(per-foot sand or sole)", "N", f"s.is_right * {_F_H}",
             lambda c: c["foot"] * c["law_h"], relative=True),
 )
+
+
+#: interface depths [m] of the depth-layer features (issue 11 item 3: a loose top layer
+#: over a harder bed, or a crust over looser sand). Each is tried alone in the proposal's
+#: ``layer`` stage, never in the whole-library fit: beside depth and depth² a hinge at a
+#: grid of depths is a flexible curve that fits the closed form's own null pattern. The
+#: grid spans the sinking samples' depths on sand_walk (2–32 mm, median 13 mm).
+LAYER_DEPTHS = (0.005, 0.010, 0.015, 0.020, 0.025, 0.030)
+
+
+def _layer_features() -> tuple[Feature, ...]:
+    """Two forms per interface depth d_L: a stiffness that acts only below it, k·(d −
+    d_L)⁺ (a harder bed under loose sand, k > 0; a looser bed under a crust, k < 0), and the
+    law's own vertical force scaled by the depth's share below it, f_law,z·(d − d_L)⁺/d —
+    the stress growing (1 + g) times as fast below d_L (``effects.variants.hard_layer``'s
+    form; a share, so > −1)."""
+    out = []
+    for d in LAYER_DEPTHS:
+        mm = f"{1e3 * d:.0f}mm"
+        below = f"o.fmax(s.depth - {d:g}, 0.0)"
+        out.append(Feature(
+            f"below_{mm}", f"depth below {1e3 * d:.0f} mm (a layer of other stiffness under it)",
+            "m", below,
+            lambda c, d=d: np.maximum(c["depth"] - d, 0.0), in_library=False))
+        out.append(Feature(
+            f"law_below_{mm}", f"the terrain law's vertical force × the share of the depth "
+            f"below {1e3 * d:.0f} mm (the stress grows faster or slower under it)", "N",
+            f"s.f_terrain[2] * {below} / o.fmax(s.depth, 1e-4)",
+            lambda c, d=d: c["law_z"] * np.maximum(c["depth"] - d, 0.0)
+            / np.maximum(c["depth"], 1e-4), relative=True, in_library=False))
+    return tuple(out)
+
+
+FEATURES: tuple[Feature, ...] = _STATE_FEATURES + _layer_features()
+#: columns of :data:`FEATURES` the whole-library fit uses
+LIBRARY_INDEX = np.array([k for k, f in enumerate(FEATURES) if f.in_library])
 
 
 def feature_names() -> tuple[str, ...]:
@@ -218,5 +258,5 @@ def force_samples(windows: Sequence[StanceWindow], terrain, theta: Mapping[str, 
                         n_slices)
 
 
-__all__ = ["Feature", "FEATURES", "ForceSamples", "force_samples", "sample_columns",
-           "feature_names", "feature", "AXES"]
+__all__ = ["Feature", "FEATURES", "LAYER_DEPTHS", "LIBRARY_INDEX", "ForceSamples",
+           "force_samples", "sample_columns", "feature_names", "feature", "AXES"]

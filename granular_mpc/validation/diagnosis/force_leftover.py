@@ -45,8 +45,7 @@ from .candidates import CandidateSet
 from .features import AXES, ForceSamples, force_samples, sample_columns
 from .problem import Problem
 from .proposal import (LAW_FEATURES, MIN_EXPLAINED_FORCE, MIN_LAW_FORCE, MIN_SAMPLES,
-                       PER_FOOT_FEATURES, explained_rms, law_fit)
-from .sparse import sparse_fit
+                       PER_FOOT_FEATURES, explained_rms, law_fit, library_fit)
 
 #: the proposal's stages (§3.6): name → (least explained force per axis [N], the laws
 #: fitted alone or None for the whole feature library, whether a law must be dissipative)
@@ -210,8 +209,7 @@ def explained_by(fs: ForceSamples, axis: str, stage: str, seed: int) -> float:
     (:data:`STAGES`) explains beyond ζ's column, in sample."""
     _, laws, dissipative = STAGES[stage]
     if laws is None:
-        fit = sparse_fit(fs.features, fs.nuisance[axis][:, None], fs.target[axis], fs.trial,
-                         fs.window, seed=seed)
+        fit = library_fit(fs, axis, seed=seed)
     else:
         fit = law_fit(fs, axis, seed=seed, laws=laws, dissipative=dissipative)
     if fit is None or not fit.selected.any():

@@ -22,7 +22,8 @@ from typing import Mapping
 import numpy as np
 
 from ..dataformat import Dataset, load_dataset
-from .features import AXES, FEATURES, ForceSamples, feature, feature_names, force_samples
+from .features import (AXES, FEATURES, LIBRARY_INDEX, ForceSamples, feature, feature_names,
+                       force_samples)
 from .joint_proposal import joint_effect_names, joint_effect_source, propose_joint_terms
 from .problem import Problem
 from .proposal_records import AxisFit, Proposal, ProposedTerm, change_text
@@ -60,6 +61,16 @@ LAW_FEATURES = {"z": ("v_z", "v_z_abs_v_z"), "h": ("v_h", "sign_v_h", "v_h_abs_v
 #: worn right sole (either sign; ζ carries the left foot). Of the two stages that pass,
 #: the one with the larger held-out reduction is proposed
 PER_FOOT_FEATURES = {"z": ("right_law_z",), "h": ("right_law_h",)}
+#: the depth-layer laws (:data:`~.features.LAYER_DEPTHS`), each tried alone on the vertical
+#: axis (ζ the only other column; either sign, a share above −1): a layer of other
+#: stiffness below an interface depth. The one with the largest held-out reduction competes
+#: with the other stages
+LAYER_FEATURES = {"z": tuple(f.name for f in FEATURES if not f.in_library), "h": ()}
+#: ... tried only where at least this share of the sinking samples lies on each side of
+#: the interface: a layer whose interface lies above (nearly) every sample is the law's
+#: own depth profile reshaped (ζ and a 1/d share), one below (nearly) every sample a
+#: handful of deep samples
+MIN_LAYER_SHARE = 0.1
 #: ... proposed when they pass :func:`axis_passes` with these least explained forces [N].
 #: Set on null data (sand_walk, 3 trials × 7 stances, noise 1, the model's plant at seeds
 #: 201, 202 and φ_s 33°, layer 4 cm, contact stiffness 1e5 at seed 201): the laws explain
@@ -156,13 +167,36 @@ def physical_shares(fit: SparseFit) -> bool:
                if FEATURES[k].relative)
 
 
-def _law_stage(fs: ForceSamples, axis: str, *, seed: int = 0) -> tuple[SparseFit | None, str]:
-    """The best passing law fit of an axis: the dissipative velocity laws or the per-foot
-    law (:data:`PER_FOOT_FEATURES`), whichever removes more of the held-out error; (None,
-    "") when neither passes."""
+def law_stages(axis: str) -> tuple[tuple[str, Mapping[str, tuple[str, ...]], bool], ...]:
+    """The law fits tried on ``axis`` before the whole library: (stage, laws, dissipative)
+    — the velocity laws together, the per-foot law, and each depth-layer law alone."""
+    return ((("law", LAW_FEATURES, True), ("per_foot", PER_FOOT_FEATURES, False))
+            + tuple(("layer", {axis: (name,)}, False) for name in LAYER_FEATURES[axis]))
+
+
+def layer_splits(fs: ForceSamples, name: str) -> bool:
+    """Whether the layer feature ``name`` splits the sinking samples: at least
+    :data:`MIN_LAYER_SHARE` of them on each side of its interface."""
+    below = float(np.mean(fs.features[:, feature_names().index(name)] != 0.0)) if fs.n else 0.0
+    return MIN_LAYER_SHARE <= below <= 1.0 - MIN_LAYER_SHARE
+
+
+def library_fit(fs: ForceSamples, axis: str, *, seed: int = 0) -> SparseFit:
+    """The sparse fit of one axis on the whole library (the features with
+    ``in_library``), arrays over all of :data:`FEATURES`."""
+    fit = sparse_fit(fs.features[:, LIBRARY_INDEX], fs.nuisance[axis][:, None],
+                     fs.target[axis], fs.trial, fs.window, seed=seed)
+    return _on_all_features(fit, LIBRARY_INDEX)
+
+
+def best_law(fs: ForceSamples, axis: str, *, seed: int = 0) -> tuple[SparseFit | None, str]:
+    """The best passing law fit of an axis (:func:`law_stages`): of the velocity laws,
+    the per-foot law and the depth-layer laws, the one that removes most of the held-out
+    error; (None, "") when none passes."""
     best: tuple[SparseFit | None, str] = (None, "")
-    for stage, laws, dissipative in (("law", LAW_FEATURES, True),
-                                     ("per_foot", PER_FOOT_FEATURES, False)):
+    for stage, laws, dissipative in law_stages(axis):
+        if stage == "layer" and not layer_splits(fs, laws[axis][0]):
+            continue
         fit = law_fit(fs, axis, seed=seed, laws=laws, dissipative=dissipative)
         ok = fit is not None and bool(fit.selected.any()) and axis_passes(
             fit.heldout_reduction, fit.heldout_reduction_selected, fit.rmse_before,
@@ -199,11 +233,10 @@ def _force_proposal(problem: Problem, theta: Mapping[str, float], *, seed: int =
     hidden: list[str] = []
     for ax in AXES:
         # the physical laws first; the whole library only when no law passes
-        fit, stage = _law_stage(fs, ax, seed=seed)
+        fit, stage = best_law(fs, ax, seed=seed)
         ok = fit is not None
         if not ok:
-            fit, stage = sparse_fit(fs.features, fs.nuisance[ax][:, None], fs.target[ax],
-                                    fs.trial, fs.window, seed=seed), "library"
+            fit, stage = library_fit(fs, ax, seed=seed), "library"
             ok = axis_passes(fit.heldout_reduction, fit.heldout_reduction_selected,
                              fit.rmse_before, fit.rmse_after, ax) and any(
                 FEATURES[k].expressible for k in np.flatnonzero(fit.selected))
@@ -381,5 +414,6 @@ __all__ = ["proposed_effects", "pointed_proposal", "POINTING_VERDICTS", "not_a_c
            "propose_terms",
            "effect_source", "force_effect_source", "effect_sources", "write_proposal",
            "proposal_sentence", "axis_passes", "law_fit", "physical_shares", "LAW_FEATURES",
-           "PER_FOOT_FEATURES", "MIN_LAW_FORCE", "explained_rms", "PROPOSED_EFFECT",
+           "PER_FOOT_FEATURES", "LAYER_FEATURES", "MIN_LAYER_SHARE", "layer_splits",
+           "law_stages", "best_law", "library_fit", "MIN_LAW_FORCE", "explained_rms", "PROPOSED_EFFECT",
            "PROPOSAL_FILE", "MIN_PROPOSAL_REDUCTION", "MIN_EXPLAINED_FORCE"]

@@ -54,6 +54,7 @@ class AxisFit(Record):
         threshold: the STLSQ threshold chosen by cross-validation (standardised).
         proposed: whether this axis contributes terms.
         stage: ``law`` (the physical velocity laws alone, :data:`~.proposal.LAW_FEATURES`),
+            ``layer`` (one depth-layer law alone, :data:`~.proposal.LAYER_FEATURES`),
             ``per_foot`` (the right foot's share of the law's force alone,
             :data:`~.proposal.PER_FOOT_FEATURES`) or ``library`` (the whole feature library).
     """
