@@ -415,5 +415,5 @@ __all__ = ["proposed_effects", "pointed_proposal", "POINTING_VERDICTS", "not_a_c
            "effect_source", "force_effect_source", "effect_sources", "write_proposal",
            "proposal_sentence", "axis_passes", "law_fit", "physical_shares", "LAW_FEATURES",
            "PER_FOOT_FEATURES", "LAYER_FEATURES", "MIN_LAYER_SHARE", "layer_splits",
-           "law_stages", "best_law", "library_fit", "MIN_LAW_FORCE", "explained_rms", "PROPOSED_EFFECT",
-           "PROPOSAL_FILE", "MIN_PROPOSAL_REDUCTION", "MIN_EXPLAINED_FORCE"]
+           "law_stages", "best_law", "library_fit", "MIN_LAW_FORCE", "explained_rms",
+           "PROPOSED_EFFECT", "PROPOSAL_FILE", "MIN_PROPOSAL_REDUCTION", "MIN_EXPLAINED_FORCE"]
