@@ -61,6 +61,15 @@ def soft_bed(o, s, k, d0=0.012):
     return (0.0, 0.0, -k * o.fmax(s.depth - d0, 0.0) * s.in_contact)
 
 
+def loose_bed(o, s, k, d0=0.012):
+    """Looser sand under a 12 mm crust, as lost support: F_z = −min(k·max(depth − d0, 0),
+    max(f_law,z, 0)). Capped by the law's own push, it never pulls the sole down — unlike
+    ``soft_bed``, whose −k·(depth − d0) acts whatever the sole does and so pulls a rising
+    sole into the sand like a suction (docs/validation.md §5.3.15)."""
+    loss = o.fmin(k * o.fmax(s.depth - d0, 0.0), o.fmax(s.f_terrain[2], 0.0))
+    return (0.0, 0.0, -loss * s.in_contact)
+
+
 def ratio_layer(o, s, g, d0=0.017):
     """Sand whose stress grows 1 + g times as fast below 17 mm: the law's force × (1 + g·
     max(depth − d0, 0)/depth)."""
@@ -198,9 +207,14 @@ FORMS: tuple[Form, ...] = (
 #: ``hard_layer`` (docs/validation.md §3.6.3). Their magnitudes were set before any
 #: diagnosis, but not before every synthesis: on the soft bed the robot fell in every
 #: trial (pitch or roll past 15°) at 3000, 1000 and 600 N/m per patch and walked at 300,
-#: so its magnitudes are 150 and 300 N/m (the controller's limit, not the method's)
+#: so its magnitudes are 150 and 300 N/m (the controller's limit, not the method's).
+#: ``loose_bed`` (session 37) is the soft bed without its pull on a rising sole; the robot
+#: fell (roll past 15°) at 3000, 2000 and 1500 N/m per patch and walked at 1000 (seeds 1,
+#: 2, 5), so its magnitudes are 500 and 1000 N/m, set before any diagnosis of it
 EXTRA_FORMS: tuple[Form, ...] = (
     Form("soft_bed", "terrain_force", soft_bed, "k", "N/m", (150.0, 300.0), (0.0, 1.0e5),
+         ("intrusion_z",)),
+    Form("loose_bed", "terrain_force", loose_bed, "k", "N/m", (500.0, 1000.0), (0.0, 1.0e5),
          ("intrusion_z",)),
     Form("ratio_layer", "terrain_force", ratio_layer, "g", "-", (1.0, 2.0), (-0.9, 20.0),
          ("intrusion_z",)),

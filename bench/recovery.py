@@ -167,6 +167,13 @@ def _diagnosis_figures(wb, name: str, d) -> dict:
                  lateral_p_min=min(e.p_value for c in lateral for e in loc.correlates[c][:3]))
         if wb.USER_OBLIQUE in d.fitted_effects:
             f["oblique_c_rel_err"] = _rel(d.fitted_effects[wb.USER_OBLIQUE]["c"], 18.0)
+    elif name == "loose_bed":
+        start = next((s for s in d.force_starts if s.effect == wb.USER_LOOSE), None)
+        f.update(start_passes=bool(start and start.passes),
+                 start_k_rel_err=_rel(start.value, 1000.0) if start else float("nan"),
+                 zeta_abs_err=d.calibration.values["zeta"] - 1.36)
+        if wb.USER_LOOSE in d.fitted_effects:
+            f["k_rel_err"] = _rel(d.fitted_effects[wb.USER_LOOSE]["k"], 1000.0)
     return f
 
 

@@ -94,8 +94,8 @@ def rigid(robot_config):
 # noisy copies add the realistic sensor model (level 1).
 # --------------------------------------------------------------------------------------
 
-from workbench import (LIBRARY, WB_CASES, build_once, diagnose_case, make_clean,  # noqa: E402
-                       register_hidden)
+from workbench import (HIDDEN_CASES, LIBRARY, WB_CASES, build_once,  # noqa: E402
+                       diagnose_case, make_clean, register_hidden)
 
 
 def shared_run_dir(tmp_path_factory, name: str):
@@ -126,7 +126,7 @@ def workbench_data(tmp_path_factory):
         key = (name, seed if noisy else None)
         if key in cache:
             return cache[key]
-        if name == "unknown":
+        if name in HIDDEN_CASES:
             register_hidden()               # as in the worker that made it (make_clean)
         if (name, None) not in cache:
             cache[(name, None)] = build_once(root / f"{name}_clean",

@@ -49,17 +49,19 @@ def test_one_out_folder_holds_one_design(tmp_path):
 
 def test_the_held_out_layer_forms_act_below_their_interface_only():
     """The opt-in held-out layers (``EXTRA_FORMS``, not in the default run): a soft bed
-    under a 12 mm crust takes k·(d − 12 mm) off the vertical force below it; a ratio layer
-    scales the law's force by 1 + g·(d − 17 mm)/d below 17 mm; neither acts above."""
+    under a 12 mm crust takes k·(d − 12 mm) off the vertical force below it; the loose bed
+    takes the same but never more than the law's own push (it never pulls a sole the law has
+    let go of, where the soft bed does); a ratio layer scales the law's force by 1 + g·(d −
+    17 mm)/d below 17 mm; none acts above."""
     from dataclasses import replace
 
     sys.path.insert(0, str(SCRIPT.parent))
-    from ool_forms import EXTRA_FORMS, FORMS, ratio_layer, soft_bed
+    from ool_forms import EXTRA_FORMS, FORMS, loose_bed, ratio_layer, soft_bed
 
     from granular_mpc.effects.state import PatchState
     from granular_mpc.terrain.closed_form import FLOAT
 
-    assert {f.name for f in EXTRA_FORMS} == {"soft_bed", "ratio_layer"}
+    assert {f.name for f in EXTRA_FORMS} == {"soft_bed", "loose_bed", "ratio_layer"}
     assert not {f.name for f in EXTRA_FORMS} & {f.name for f in FORMS}
     s = PatchState(depth=0.02, in_contact=1.0, p_c=(0.0, 0.0, -0.02), v_c=(0.1, 0.0, -0.3),
                    a_c=(0.0, 0.0, 0.0), intrusion=(0.0, 0.0, 0.02), heading=(1.0, 0.0),
@@ -67,6 +69,13 @@ def test_the_held_out_layer_forms_act_below_their_interface_only():
                    area_h=0.002, width=0.04, density=1500.0, dt=5e-4)
     assert soft_bed(FLOAT, s, 300.0)[2] == pytest.approx(-300.0 * 0.008)
     assert soft_bed(FLOAT, replace(s, depth=0.01), 300.0)[2] == pytest.approx(0.0)
+    assert loose_bed(FLOAT, s, 300.0)[2] == pytest.approx(-300.0 * 0.008)
+    assert loose_bed(FLOAT, replace(s, depth=0.01), 300.0)[2] == pytest.approx(0.0)
+    weak = replace(s, f_terrain=(4.0, 0.0, 1.5))        # the law lets go: at most its push
+    assert loose_bed(FLOAT, weak, 300.0)[2] == pytest.approx(-1.5)
+    let_go = replace(s, f_terrain=(4.0, 0.0, 0.0))
+    assert loose_bed(FLOAT, let_go, 300.0)[2] == pytest.approx(0.0)
+    assert soft_bed(FLOAT, let_go, 300.0)[2] == pytest.approx(-300.0 * 0.008)
     f = ratio_layer(FLOAT, s, 2.0)
     assert f[2] == pytest.approx(2.0 * 0.003 / 0.02 * 50.0)
     assert f[0] == pytest.approx(2.0 * 0.003 / 0.02 * 4.0)

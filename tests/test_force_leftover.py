@@ -1,88 +1,30 @@
 """The foot-force equation error after the additions (``validation.diagnosis.force_leftover``):
-the added effects' force at the measured sinking state against an independent evaluation of
-their laws, the sole's submerged area against the circle, what a stage still explains beside
-an effect column, which additions make the test inapplicable, the verdict it changes, and
-a real data set without a missing foot force."""
+what a stage still explains beside an effect column, which additions make the test
+inapplicable, the verdict it changes, and a real data set without a missing foot force."""
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 import pytest
 
-from granular_mpc.config import load_robot
 from granular_mpc.effects import effect_info
 from granular_mpc.validation.diagnosis import ParamEstimate, Ranked
 from granular_mpc.validation.diagnosis.acceptance_records import ForceLeftover
 from granular_mpc.validation.diagnosis.features import FEATURES, ForceSamples, feature_names
 from granular_mpc.validation.diagnosis.force_leftover import (EVIDENCE_MARGIN, FOOTPRINT_SHARE,
-                                                              effect_force_columns,
                                                               explained_by, force_leftover,
-                                                              inapplicable, submerged_area,
-                                                              unproduced)
+                                                              inapplicable, unproduced)
 from granular_mpc.validation.diagnosis.localization_records import Localization
 from granular_mpc.validation.diagnosis.verdict import (VerdictInputs, best_candidate_statement,
                                                        decide)
-
-RHO = 1660.0
-
-
-def _foot():
-    return load_robot("yobogo10s").foot
-
-
-def _columns(n: int = 40, seed: int = 3) -> dict[str, np.ndarray]:
-    """Sinking samples of a foot heading 30° left of W x, some of them already rising."""
-    rng = np.random.default_rng(seed)
-    yaw = math.radians(30.0)
-    return {"depth": rng.uniform(0.004, 0.03, n), "v_h": rng.uniform(0.05, 0.6, n),
-            "v_l": rng.uniform(-0.05, 0.05, n), "v_z": -rng.uniform(0.3, 1.0, n),
-            "a_z": rng.normal(0.0, 5.0, n), "t_stance": rng.uniform(0.0, 0.1, n),
-            "foot": (np.arange(n) % 2).astype(float), "heading_x": np.full(n, math.cos(yaw)),
-            "heading_y": np.full(n, math.sin(yaw)),
-            "rise": np.where(np.arange(n) % 3 == 0, rng.uniform(0.0, 0.004, n), 0.0),
-            "depth_rate": rng.uniform(0.3, 1.0, n)}
-
-
-def test_submerged_area_is_the_chord_of_the_sole_arc_at_that_depth():
-    foot = _foot()
-    R, c, h, w = foot.radius, foot.chord, foot.height, foot.width
-    d = np.array([0.0, 1e-3, 5e-3, h, 2 * h])
-    area = submerged_area(d, R, c, w)
-    # the circle of radius R whose lowest point is at depth d: half-chord √(R² − (R − d)²)
-    expected = [min(2.0 * math.sqrt(max(R * R - (R - x) ** 2, 0.0)), c) * w for x in d]
-    assert area == pytest.approx(expected, rel=1e-12, abs=1e-15)
-    assert area[0] == 0.0 and area[3] == pytest.approx(c * w) and area[4] == area[3]
-
-
-def test_library_effects_at_the_measured_state_match_their_laws_evaluated_by_hand():
-    """inertial_drag and cohesion on the patch state the module builds, summed over the
-    foot's patches, against their formulas written out here (numbers, not the tracer)."""
-    foot = _foot()
-    n_sl = int(foot.slices)
-    c = _columns()
-    law_h, law_z = np.full(c["depth"].size, 20.0), np.full(c["depth"].size, 150.0)
-    fx = [(effect_info("inertial_drag"), {"c_d": 4.0}),
-          (effect_info("cohesion"), {"suction": 3000.0, "release": 0.003})]
-    out = effect_force_columns(fx, c, law_h, law_z, n_slices=n_sl, radius=foot.radius,
-                               chord=foot.chord, width=foot.width, density=RHO, dt=0.002)
-    area = submerged_area(c["depth"], foot.radius, foot.chord, foot.width / n_sl)
-    speed = np.sqrt(c["v_h"] ** 2 + c["v_l"] ** 2 + c["v_z"] ** 2 + 1e-12)
-    k = -0.5 * 4.0 * RHO * area * speed * n_sl
-    assert out["inertial_drag"]["h"] == pytest.approx(k * c["v_h"], rel=1e-9)
-    assert out["inertial_drag"]["z"] == pytest.approx(k * c["v_z"], rel=1e-9)
-    pull = -3000.0 * area * (1.0 - np.exp(-c["rise"] / 0.003)) * n_sl
-    assert out["cohesion"]["z"] == pytest.approx(pull, rel=1e-9, abs=1e-12)
-    assert np.all(out["cohesion"]["h"] == 0.0)
-    assert np.all(pull[c["rise"] == 0.0] == 0.0) and np.any(pull < 0.0)
+from sinking import sinking_columns
 
 
 def _samples(y_of, n: int = 300, seed: int = 1) -> ForceSamples:
     """Sinking samples with the feature library's columns (three trials); target y_of(F)
     plus noise, ζ's column a law-like positive force."""
     rng = np.random.default_rng(seed)
-    c = _columns(n, seed)
+    c = sinking_columns(n, seed)
     law = 100.0 + 3000.0 * c["depth"]
     F = np.column_stack([f.compute({**c, "law_z": law, "law_h": 0.1 * law}) for f in FEATURES])
     y = y_of(F) + rng.normal(0.0, 2.0, n)

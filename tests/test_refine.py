@@ -2,7 +2,7 @@
 indistinguishable partner of the leading candidate is refined by replays even when it is
 not significant, and nothing is refined without a significant leader; a rejection or an
 acceptance holds against the model it was judged on (``rejected_against``,
-``rejudge_earlier``)."""
+``rejudge_earlier``); a contest records each effect once (``one_per_effect``)."""
 
 import numpy as np
 import pytest
@@ -10,7 +10,7 @@ import pytest
 from granular_mpc.validation.diagnosis.acceptance_records import Acceptance
 from granular_mpc.validation.diagnosis.ranking_records import CandidateStats
 from granular_mpc.validation.diagnosis.refine import (contenders_for, is_rival,
-                                                      rejected_against)
+                                                      one_per_effect, rejected_against)
 from granular_mpc.validation.diagnosis.result import IndistinguishablePair
 from granular_mpc.validation.diagnosis.screen import (MIN_SHARED_INCLUSION, inclusion_ties,
                                                       share_inclusion)
@@ -420,3 +420,19 @@ def test_no_exchange_when_the_term_it_beat_fits_worse_or_breaks_another_term(mon
     bias = [a for a in acceptance if a.effect == "force_sensor_bias"]
     assert bias and not bias[0].accepted and bias[0].given == ("cohesion",)
     assert not any(a.dropped for a in acceptance)
+
+
+def test_a_contest_records_each_effect_once_with_the_added_fit():
+    """An effect refined from its screening estimate and from its force start has two
+    refinements in a contest: the record keeps, for the added effect, the fit that passed
+    the acceptance (here its higher-AICc path, the lower one having failed), for the
+    others their lowest AICc; in AICc order."""
+    stats = {r.effect: r for r in _stats([_row("user_term", 0.5, 0.9),
+                                          _row("cohesion", 0.4, 0.9)])}
+    start_path, screen_path, other, other2 = object(), object(), object(), object()
+    tried = [(100.0, stats["user_term"], start_path), (120.0, stats["user_term"], screen_path),
+             (110.0, stats["cohesion"], other), (130.0, stats["cohesion"], other2)]
+    kept = one_per_effect(tried, screen_path)
+    assert [(t[0], t[1].effect) for t in kept] == [(110.0, "cohesion"), (120.0, "user_term")]
+    assert kept[1][2] is screen_path and kept[0][2] is other
+    assert [t[0] for t in one_per_effect(tried, start_path)] == [100.0, 110.0]

@@ -24,12 +24,21 @@ WB_SPEEDS = (0.15, 0.25, 0.35)
 WB_STEPS = 7
 #: a hidden effect outside the library (registered for the synth only, never a candidate)
 WB_HIDDEN = "_test_hidden_skew"
+#: a looser bed below a 12 mm crust, hidden in the plant; the user's term is the same law
+#: (the calibration absorbs it into ζ: the force start, docs/validation.md §3.3)
+WB_HIDDEN_LOOSE = "_test_hidden_loose_bed"
+USER_LOOSE = "_test_user_loose_bed"
+#: the cases whose plant has a hidden effect of its own
+HIDDEN_CASES = ("unknown", "loose_bed")
 #: name → plant effects, plant seed, scenario overrides
 WB_CASES = {
     "null": dict(effects=[], seed=21, overrides=[]),
     "cohesion": dict(effects=["cohesion:suction=3000"], seed=22, overrides=[]),
     "zeta_off": dict(effects=[], seed=23, overrides=["terrain.zeta=1.768"]),
     "unknown": dict(effects=[f"{WB_HIDDEN}:k=18"], seed=24, overrides=[]),
+    # seed 1: the data of bench/out_of_library.py's loose_bed_m1_s1 (the same law, plant
+    # and noise seeds), where the force start was developed (docs/validation.md §5.3.16)
+    "loose_bed": dict(effects=[f"{WB_HIDDEN_LOOSE}:k=1000"], seed=1, overrides=[]),
 }
 #: noise seeds of the multi-seed recovery test (the first is the fixture's default: the
 #: case's plant seed)
@@ -49,10 +58,27 @@ USER_MOCAP = "_test_dg_mocap_offset"
 USER_OBLIQUE = "_test_user_oblique"
 
 
-def register_hidden() -> None:
-    """Register the hidden plant effect of the "unknown" case (idempotent)."""
+def loose_bed(o, s, p):
+    """Looser sand under a 12 mm crust, as lost support: F_z = −min(k·(depth − 12 mm)⁺,
+    the law's push) per patch (it never pulls)."""
+    loss = o.fmin(p["k"] * o.fmax(s.depth - 0.012, 0.0), o.fmax(s.f_terrain[2], 0.0))
+    return (0.0, 0.0, -loss * s.in_contact)
+
+
+def _register_loose_bed(name: str) -> None:
     from granular_mpc.effects import Param, register_effect, registered_effects
 
+    if name not in registered_effects():
+        register_effect(name, params={"k": Param(200.0, 0.0, 1.0e5, "N/m",
+                                                 "stiffness lost below 12 mm")})(loose_bed)
+
+
+def register_hidden() -> None:
+    """Register the hidden plant effects of the "unknown" and "loose_bed" cases
+    (idempotent)."""
+    from granular_mpc.effects import Param, register_effect, registered_effects
+
+    _register_loose_bed(WB_HIDDEN_LOOSE)
     if WB_HIDDEN in registered_effects():
         return
 
@@ -66,6 +92,8 @@ def register_user_terms() -> None:
     """Register the user-written candidates (idempotent)."""
     from granular_mpc.effects import (Param, register_effect, register_joint_effect,
                                       register_sensor_effect, registered_names)
+
+    _register_loose_bed(USER_LOOSE)
 
     if USER_OBLIQUE not in registered_names():
         @register_effect(USER_OBLIQUE, params={"c": Param(10.0, -200.0, 200.0, "N·s/m", "")})
@@ -98,10 +126,10 @@ def register_user_terms() -> None:
 
 def case_candidates(name: str) -> list[str]:
     """Candidates of a case's diagnosis: the library, plus on "cohesion" the user terms of
-    every kind (sensor on the torques, joint, a sensor effect no scored channel sees) and on
-    "unknown" the user's oblique term."""
+    every kind (sensor on the torques, joint, a sensor effect no scored channel sees), on
+    "unknown" the user's oblique term and on "loose_bed" the user's loose bed (the truth)."""
     extra = {"cohesion": [USER_SENSOR_TAU, USER_JOINT, USER_MOCAP],
-             "unknown": [USER_OBLIQUE]}.get(name, [])
+             "unknown": [USER_OBLIQUE], "loose_bed": [USER_LOOSE]}.get(name, [])
     if extra:
         register_user_terms()
     return list(LIBRARY) + extra
@@ -112,7 +140,7 @@ def make_clean(name: str, out: Path, plant_seed: int | None = None) -> Path:
     from granular_mpc.validation.synth import synthesize
 
     case = WB_CASES[name]
-    if name == "unknown":
+    if name in HIDDEN_CASES:
         register_hidden()
     synthesize("sand_walk", out, speeds=WB_SPEEDS, steps=WB_STEPS,
                seed=case["seed"] if plant_seed is None else plant_seed,

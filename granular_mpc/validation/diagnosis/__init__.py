@@ -14,7 +14,8 @@ returning a frozen result:
 4. :mod:`.refine` — contenders refined by Gauss–Newton replays (:mod:`.gauss_newton`),
    the best that passes honest acceptance (:mod:`.acceptance`: its replays improve its
    credited channels, its coefficients are physical) added, the others re-tested
-   conditionally.
+   conditionally; a user's or proposed terrain force is also refined from its fit with ζ
+   on the foot-force equation error (:mod:`.force_start`, :mod:`.sample_forces`).
 5. :mod:`.localise` — where, when and with what the residual is structured, before and
    after.
 6. :mod:`.verdict` — ordered verdict rules (``partially_explained`` when the structure

@@ -18,15 +18,9 @@ leaves structure on both, and the true term, given as a free column beside ζ, t
 little of it on the benchmark's hard-layer and sole-Coulomb data — so the test asks whether
 the additions act at all where the force is missing, not whether they fit it.)
 
-The added effects are evaluated on each sinking sample as the contact law evaluates them on
-one of the foot's patches, from the foot-level measured state: the patch's share of the
-law's force (``f_terrain``, also taken as the yield force ``f_yield_z``: the medium yields
-while the sole sinks), the sole arc's submerged horizontal area at the measured depth
-(pitch ignored), the velocity from the measured forward, lateral and vertical components,
-the vertical acceleration only, the deepest depth so far from the measured rise, and the
-touchdown point under the sole (``intrusion`` = (0, 0, depth)); the foot's force is the
-patch force times the number of patches. Joint effects and torque sensors produce no foot
-force. A term that changes what the equation error reads — a sensor effect on the foot
+The added effects are evaluated on each sinking sample as the contact law evaluates them
+on one of the foot's patches (:mod:`.sample_forces`). Joint effects and torque sensors
+produce no foot force. A term that changes what the equation error reads — a sensor effect on the foot
 force or on the kinematics, or a geometry term (the surface the depth is measured from) —
 makes the test inapplicable, and it is skipped.
 """
@@ -38,14 +32,13 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ...effects import EffectInfo
-from ...effects.state import PatchState
-from ...effects.tracing import trace_terrain_force
 from .acceptance_records import ForceLeftover
 from .candidates import CandidateSet
-from .features import AXES, ForceSamples, force_samples, sample_columns
+from .features import AXES, ForceSamples
 from .problem import Problem
 from .proposal import (LAW_FEATURES, MIN_EXPLAINED_FORCE, MIN_LAW_FORCE, MIN_SAMPLES,
                        PER_FOOT_FEATURES, explained_rms, law_fit, library_fit)
+from .sample_forces import equation_states, force_function
 
 #: the proposal's stages (§3.6): name → (least explained force per axis [N], the laws
 #: fitted alone or None for the whole feature library, whether a law must be dissipative)
@@ -81,72 +74,6 @@ def inapplicable(added: Sequence[str], candidates: CandidateSet) -> tuple[str, .
                  if candidates.kind(n) == "geometry" or n in sensors)
 
 
-def submerged_area(depth: np.ndarray, radius: float, chord: float, width: float) -> np.ndarray:
-    """Horizontal area [m²] of a level sole arc of ``radius`` and ``chord``, ``width``
-    wide, submerged to ``depth`` [m]: the arc's chord at that depth times the width."""
-    d = np.clip(np.asarray(depth, float), 0.0, None)
-    half = np.sqrt(np.clip(2.0 * radius * d - d * d, 0.0, None))
-    return np.minimum(2.0 * half, chord) * width
-
-
-def effect_force_columns(effects: Sequence[tuple[EffectInfo, Mapping[str, float]]],
-                         cols: Mapping[str, np.ndarray], law_h: np.ndarray,
-                         law_z: np.ndarray, *, n_slices: int, radius: float, chord: float,
-                         width: float, density: float, dt: float
-                         ) -> dict[str, dict[str, np.ndarray]]:
-    """Each terrain-force effect's force on the foot at the sinking samples (the module
-    docstring's patch state): effect → axis (``h`` forward, ``z`` vertical) → column [N].
-
-    Args:
-        effects: (effect, its parameter values).
-        cols: :func:`.features.sample_columns` of the samples.
-        law_h, law_z: the law's forward and vertical force on the foot at each sample [N].
-        n_slices: patches per foot; radius, chord, width: the sole [m]; density [kg/m³];
-            dt: the sample interval [s].
-    """
-    import casadi as ca
-
-    from ...terrain.closed_form import casadi_ops
-
-    n = int(np.asarray(cols["depth"]).size)
-    hx, hy = np.asarray(cols["heading_x"], float), np.asarray(cols["heading_y"], float)
-    v_h, v_l, v_z = (np.asarray(cols[k], float) for k in ("v_h", "v_l", "v_z"))
-    depth = np.asarray(cols["depth"], float)
-    share = 1.0 / n_slices
-    rows = {
-        "depth": depth, "v_x": v_h * hx - v_l * hy, "v_y": v_h * hy + v_l * hx, "v_z": v_z,
-        "a_z": np.asarray(cols["a_z"], float), "hx": hx, "hy": hy,
-        "f_x": law_h * hx * share, "f_y": law_h * hy * share, "f_z": law_z * share,
-        "area": submerged_area(depth, radius, chord, width * share),
-        "depth_max": depth + np.clip(np.asarray(cols["rise"], float), 0.0, None),
-        "t_stance": np.asarray(cols["t_stance"], float),
-        "foot": np.asarray(cols["foot"], float),
-        "depth_rate": np.asarray(cols["depth_rate"], float),
-    }
-    names = list(rows)
-    x = ca.SX.sym("x", len(names))
-    sx = dict(zip(names, (x[i] for i in range(len(names)))))
-    zero = 0.0
-    state = PatchState(
-        depth=sx["depth"], in_contact=1.0, p_c=(zero, zero, -sx["depth"]),
-        v_c=(sx["v_x"], sx["v_y"], sx["v_z"]), a_c=(zero, zero, sx["a_z"]),
-        intrusion=(zero, zero, sx["depth"]), heading=(sx["hx"], sx["hy"], zero),
-        lateral=(-sx["hy"], sx["hx"], zero), f_terrain=(sx["f_x"], sx["f_y"], sx["f_z"]),
-        f_yield_z=sx["f_z"], area_h=sx["area"], width=width * share, density=density, dt=dt,
-        depth_max=sx["depth_max"], t_stance=sx["t_stance"], foot=sx["foot"],
-        depth_rate=sx["depth_rate"])
-    X = np.vstack([rows[k] for k in names])
-    out = {}
-    o = casadi_ops()
-    for info, values in effects:
-        p = {k: float(values[k]) for k in info.params}
-        f = trace_terrain_force(info, o, state, p)
-        fn = ca.Function("effect", [x], [ca.vertcat(*[ca.SX(fi) for fi in f])])
-        F = np.asarray(fn.map(n)(X)) * n_slices if n else np.zeros((3, 0))
-        out[info.name] = {"h": F[0] * hx + F[1] * hy, "z": F[2]}
-    return out
-
-
 def force_leftover(problem: Problem, theta: Mapping[str, float],
                    added: Sequence[tuple[EffectInfo, Mapping[str, float]]], *,
                    seed: int = 0) -> tuple[ForceLeftover, ...]:
@@ -161,19 +88,11 @@ def force_leftover(problem: Problem, theta: Mapping[str, float],
         added: the added effects with their fitted parameters.
         seed: seed of the sparse fits' stability resamples.
     """
-    biped = problem.biped
-    n_slices = int(biped.config.foot.slices)
-    terrain = problem.replay_model.terrain
-    fs = force_samples(problem.windows, terrain, theta, n_slices=n_slices)
+    fs, states = equation_states(problem, theta)
     if fs.n < MIN_SAMPLES:
         return ()
-    cols = sample_columns(problem.windows)
-    foot = biped.config.foot
-    forces = [(i, v) for i, v in added if i.kind == "terrain_force"]
-    cols_f = effect_force_columns(
-        forces, cols, cols["f_h"] - fs.target["h"], cols["f_z"] - fs.target["z"],
-        n_slices=n_slices, radius=foot.radius, chord=foot.chord, width=foot.width,
-        density=float(terrain.config.density), dt=1.0 / float(problem.sample_rate_hz))
+    cols_f = {i.name: force_function(states, i, v)(None)
+              for i, v in added if i.kind == "terrain_force"}
     total = {ax: sum((c[ax] for c in cols_f.values()), np.zeros(fs.n)) for ax in AXES}
     footprint = float(np.sqrt(np.mean(total["h"] ** 2 + total["z"] ** 2)))
     names = tuple(i.name for i, _ in added if i.kind in ("terrain_force", "joint", "sensor"))
@@ -218,5 +137,4 @@ def explained_by(fs: ForceSamples, axis: str, stage: str, seed: int) -> float:
 
 
 __all__ = ["ForceLeftover", "force_leftover", "unproduced", "explained_by", "STAGES",
-           "FOOTPRINT_SHARE", "EVIDENCE_MARGIN", "effect_force_columns", "inapplicable",
-           "submerged_area", "READ_BY_THE_EQUATION"]
+           "FOOTPRINT_SHARE", "EVIDENCE_MARGIN", "inapplicable", "READ_BY_THE_EQUATION"]

@@ -27,6 +27,7 @@ from .coverage import (assess_candidates, calibration_text, can_calibrate,
                        drop_unreadable_sensor_candidates, fixed_calibration, measured_problem,
                        write_coverage)
 from .force_leftover import ForceLeftover, force_leftover, inapplicable
+from .force_start import force_starts
 from .localise import localise_models, where_summary
 from .problem import Problem, load_problem
 from .proposal import pointed_proposal, propose_terms
@@ -131,6 +132,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     proposal = (propose_terms(problem, cal.theta, seed=seed, dataset=ds)
                 if can_calibrate(ds) else None)
     timing["proposal"] = _time.perf_counter() - t0
+    # the user's and proposed terrain forces fitted with ζ on the same error (force_start.py)
+    starts = force_starts(problem, cands, cal.theta) if can_calibrate(ds) else ()
     with ReplayPool(cal.replay_model, problem.windows, workers=workers) as pool:
         t0 = _time.perf_counter()
         res = compute_residuals(problem, cands, cal, pool)
@@ -164,7 +167,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
         t0 = _time.perf_counter()
         ref = refine(problem, cands, cal, res, scr, pool, n_boot=n_boot, seed=seed,
                      max_effects=max_effects, max_contenders=max_contenders,
-                     refine_iterations=refine_iterations)
+                     refine_iterations=refine_iterations,
+                     starts=[s for s in starts if s.passes and s.effect in cands.infos])
         timing["refine"] = _time.perf_counter() - t0
     t0 = _time.perf_counter()
     n_fitted = len(cal.nuisance) + sum(len(cands.columns[s]) for s in ref.selected)
@@ -204,7 +208,7 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
                            loc.after.n_major_cells),
         design, Recommended.for_fit(theta, ref.fitted), timing, (), warns, ref.acceptance,
         best, out, proposal, strength_twins=tuple(scr.strength_twins),
-        not_twins=scr.not_twins, force_left=force_left)
+        not_twins=scr.not_twins, force_left=force_left, force_starts=starts)
     if out is None:
         return diag
     figs = (make_figures(out, loc.before, loc.after, ref.ranking, problem.channels,

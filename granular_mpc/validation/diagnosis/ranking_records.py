@@ -2,11 +2,13 @@
 
 :class:`CandidateStats` is what the screening (:mod:`.screen`) computes for a candidate
 against a model; :class:`Ranked` adds what the selection (:mod:`.refine`) decided. Both
-are the entries of ``diagnosis.json`` → ``ranking`` (same keys).
+are the entries of ``diagnosis.json`` → ``ranking`` (same keys); :class:`ForceStart`, those of
+``force_starts`` (where the replays start a user's or proposed term).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Mapping
 
@@ -141,4 +143,38 @@ class Ranked(CandidateStats):
         return None if est is None else est.value
 
 
-__all__ = ["ParamEstimate", "CandidateStats", "RefinedFit", "ConditionalResult", "Ranked"]
+@dataclass(frozen=True)
+class ForceStart(Record):
+    """A term's fit on the foot-force equation error, with ζ (:mod:`.force_start`): where
+    the replays start it.
+
+    Attributes:
+        effect: the candidate; param: its main parameter.
+        value: the fitted value of ``param`` (the others at their defaults).
+        zeta: ζ fitted beside it on the vertical axis (its value there), within its bounds.
+        axis: the axis fitted (``z`` vertical, ``h`` forward).
+        rms_before, rms_after: RMS [N] of the equation error with ζ alone and with the term.
+        heldout_reduction: trial-grouped held-out reduction of the equation error.
+        passes: whether it meets the evidence rule (then the replays start from it).
+        n_samples: sinking samples.
+    """
+
+    effect: str
+    param: str
+    value: float
+    zeta: float
+    axis: str
+    rms_before: float
+    rms_after: float
+    heldout_reduction: float
+    passes: bool
+    n_samples: int
+
+    @property
+    def explained(self) -> float:
+        """The force the term explains beyond ζ, √(RMS_before² − RMS_after²) [N]."""
+        return math.sqrt(max(self.rms_before ** 2 - self.rms_after ** 2, 0.0))
+
+
+__all__ = ["ParamEstimate", "CandidateStats", "RefinedFit", "ConditionalResult", "Ranked",
+           "ForceStart"]

@@ -24,7 +24,7 @@ from .cubes import residual_cube
 from .design import GeometryRows
 from .gauss_newton import GaussNewtonFit, refine_replays
 from .problem import Problem
-from .ranking_records import CandidateStats, ConditionalResult, Ranked, RefinedFit
+from .ranking_records import CandidateStats, ConditionalResult, ForceStart, Ranked, RefinedFit
 from .regression import Regression, aicc
 from .residuals import Residuals
 from .result import ConditionalRow, IndistinguishablePair, RefinedHeldout, SelectionStep
@@ -294,6 +294,18 @@ def exchange_terms(problem: Problem, pool: ReplayPool, res: Residuals, scr: Scre
     return None
 
 
+def one_per_effect(tried: Sequence[tuple], chosen: GaussNewtonFit) -> list[tuple]:
+    """The refined contenders of a contest, one per effect (an effect refined from its
+    screening estimate and from its force start has two): the added one's ``chosen`` fit,
+    each other's lowest AICc; in AICc order."""
+    out: dict[str, tuple] = {}
+    for t in sorted(tried, key=lambda t: t[0]):
+        if t[2] is chosen or (t[1].effect not in out and not any(
+                u[2] is chosen and u[1].effect == t[1].effect for u in tried)):
+            out[t[1].effect] = t
+    return sorted(out.values(), key=lambda t: t[0])
+
+
 def judging_order(scored: Sequence[tuple[float, str]], rivals: Collection[str]) -> list[str]:
     """The refined contenders the acceptance judges, by refined AICc (``scored``: (AICc,
     effect)): every contender that is not a rival, and a rival only when its AICc is
@@ -310,12 +322,19 @@ def _conditional_row(r: CandidateStats) -> ConditionalRow:
 
 def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, res: Residuals,
            scr: Screening, pool: ReplayPool, *, n_boot: int, seed: int, max_effects: int,
-           max_contenders: int, refine_iterations: int) -> Refinement:
+           max_contenders: int, refine_iterations: int,
+           starts: Sequence[ForceStart] = ()) -> Refinement:
     """Add at most ``max_effects`` effects: ``max_contenders`` significant candidates, and
     the indistinguishable partners of the leading one (:func:`contenders_for`; measured
     against the calibrated model for the first addition, against the current model after
     one), are each refined by ``refine_iterations`` replay Gauss–Newton iterations; the
-    lowest refined AICc that passes the acceptance is added."""
+    lowest refined AICc that passes the acceptance is added.
+
+    ``starts``: force starts (:mod:`.force_start`) that met their evidence rule; before
+    the first addition is judged each is refined from its start too (its value and ζ),
+    and competes as a rival unless it is a contender already (then both refinements are
+    judged in AICc order, and the first that passes counts). Like a rival it only wins:
+    it is not tried again as the fallback of rejected contenders."""
     windows, channels, edges = problem.windows, problem.channels, problem.edges
     geo = res.geometry
     base_keys = list(scr.base_keys)
@@ -376,7 +395,10 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
             # the leader's partners: against the calibrated model, then the current one
             pairs = scr.indistinguishable if not selected else step_pairs
             contenders = contenders_for(stats, selected, rejected, max_contenders, pairs, twins)
-            if not contenders:
+            # the force starts: once, for the first addition (against the calibrated model)
+            fresh = ([s for s in starts if s.effect not in twins]
+                     if not selected and not acceptance else [])
+            if not contenders and not fresh:
                 break
             rivals = {r.effect for r in contenders} - {r.effect for r in contenders_for(
                 stats, selected, rejected, max_contenders, pairs, twins, with_rivals=False)}
@@ -398,6 +420,19 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
                 tried.append((score, r, fit))
                 refined_fits[r.effect].append(RefinedFit(tuple(selected), score, rss,
                                                          dict(fit.fitted[r.effect])))
+            for st in fresh:
+                r = next(r for r in stats if r.effect == st.effect)
+                fit = refine_replays(problem, pool, res, candidates, [st.effect],
+                                     {f"{st.effect}.{st.param}": st.value},
+                                     nuisance_columns({**theta_final, "zeta": st.zeta}),
+                                     iterations=refine_iterations)
+                score, rss = refined_aicc(problem, candidates, res, scr, fit.preds,
+                                          fit.fitted, [st.effect])
+                refined_fits[st.effect].append(RefinedFit((), score, rss,
+                                                          dict(fit.fitted[st.effect])))
+                if all(t[1].effect != st.effect for t in tried):
+                    rivals.add(st.effect)
+                tried.append((score, r, fit))       # beside its screening path, if any
             tried.sort(key=lambda t: t[0])
             chosen = None
             judged = set(judging_order([(t[0], t[1].effect) for t in tried], rivals))
@@ -418,6 +453,7 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
             best, fit = chosen
             selected.append(best.effect)
             fitted, theta_final, final_preds = fit.fitted, dict(fit.theta), fit.preds
+            tried = one_per_effect(tried, fit)
             rivals_of[best.effect] = [(t[1].effect, dict(t[2].fitted[t[1].effect]))
                                       for t in tried if t[1].effect != best.effect]
             step = dict(added=best.effect, contenders=tuple(t[1].effect for t in tried),

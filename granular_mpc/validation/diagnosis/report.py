@@ -251,6 +251,7 @@ def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
             added = "dropped" if a.dropped else ("yes" if a.accepted else "no")
             lines.append(f"| {who} | {added} | {ch} | {co} | "
                          f"{'; '.join(a.reasons) or '–'} |")
+    lines += force_start_lines(d)
     if d.indistinguishable:
         lines += ["", "## Candidates the data cannot tell apart", ""]
         for g in d.indistinguishable:
@@ -281,6 +282,28 @@ def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
     return "\n".join(lines)
 
 
+def force_start_lines(d: Diagnosis) -> list[str]:
+    """The user's and proposed terrain forces fitted on the foot-force equation error with
+    ζ (:mod:`.force_start`), and whether the replays started from there."""
+    if not d.force_starts:
+        return []
+    zeta = d.calibration.equation_error.values.get("zeta", float("nan"))
+    out = ["", "## The user's and proposed terms on the foot-force equation error", "",
+           f"Fitted with ζ free on the sinking samples (the calibration's ζ = {zeta:.3g}); a "
+           "term that meets the evidence rule is also refined by the replays from there "
+           "(docs/validation.md §3.3, \"The force start\").", ""]
+    for s in d.force_starts:
+        axis = "vertical" if s.axis == "z" else "forward"
+        verdict = ("refined from there" if s.passes else
+                   "below the evidence rule: refined from the screening's estimate only")
+        out.append(f"* {s.effect}: {s.param} = {s.value:.4g} with ζ = {s.zeta:.3g}; {axis} "
+                   f"force error {s.rms_before:.2f} → {s.rms_after:.2f} N RMS (explains "
+                   f"{s.explained:.1f} N), held-out "
+                   f"{f'{-100 * s.heldout_reduction:+.0f}'.replace('-', '−')} % — "
+                   f"{verdict}")
+    return out
+
+
 def write_outputs(d: Diagnosis, figs: Sequence[Path]) -> None:
     """``diagnosis.json`` and ``report.md`` in ``d.out_dir``."""
     out = d.out_dir
@@ -289,4 +312,4 @@ def write_outputs(d: Diagnosis, figs: Sequence[Path]) -> None:
 
 
 __all__ = ["proposal_section", "figures", "tstat_figure", "ranking_figure", "profiles_figure",
-           "markdown", "write_outputs", "coefficient_text", "FIGURE_DPI"]
+           "markdown", "write_outputs", "coefficient_text", "force_start_lines", "FIGURE_DPI"]

@@ -18,7 +18,7 @@ from .acceptance_records import (Acceptance, ChannelChange, CoefficientCheck, Fo
                                  StrengthTwin)
 from .localization_records import Localization
 from .proposal_records import Proposal
-from .ranking_records import Ranked
+from .ranking_records import ForceStart, Ranked
 from .records import NOT_JSON, OMIT_EMPTY, OMIT_NONE, Record
 from .thresholds import (LARGE_HELDOUT_REDUCTION, MAX_DELTA_AICC, MIN_EFFECT_SIZE,
                          MIN_HELDOUT_REDUCTION, MIN_INCLUSION, MIN_STANCE_REDUCTION,
@@ -282,6 +282,9 @@ class Diagnosis(Record):
             (:func:`.strength.not_twins`).
         force_left: force axes whose equation error while the sole sinks the additions
             leave unexplained (:mod:`.force_leftover`).
+        force_starts: the user's and proposed terrain-force terms fitted on the foot-force
+            equation error with ζ (:mod:`.force_start`); those that pass were also refined
+            from there.
     """
 
     data: str
@@ -306,6 +309,7 @@ class Diagnosis(Record):
     strength_twins: tuple[StrengthTwin, ...] = field(default=(), metadata=OMIT_EMPTY)
     not_twins: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
     force_left: tuple[ForceLeftover, ...] = field(default=(), metadata=OMIT_EMPTY)
+    force_starts: tuple[ForceStart, ...] = field(default=(), metadata=OMIT_EMPTY)
 
     @property
     def added(self) -> list[str]:
