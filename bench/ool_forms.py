@@ -57,7 +57,10 @@ def hard_layer(o, s, k, d0=0.02):
 
 
 def soft_bed(o, s, k, d0=0.012):
-    """Looser sand under a 12 mm crust: F_z = −k·max(depth − d0, 0) (the stiffness drops)."""
+    """Looser sand under a 12 mm crust: F_z = −k·max(depth − d0, 0) (the stiffness drops).
+    It acts whatever the sole does: while the sole rises and the law lets go, it pulls the
+    sole down — a suction growing with depth on the way out (``loose_bed`` never pulls;
+    docs/validation.md §5.3.16)."""
     return (0.0, 0.0, -k * o.fmax(s.depth - d0, 0.0) * s.in_contact)
 
 
