@@ -167,6 +167,38 @@ class ForceLeftover(Record):
                 f"< {self.threshold:g} N)")
 
 
+@dataclass(frozen=True)
+class LawPreferred(Record):
+    """An added terrain force whose own law fits the force the foot meets while it sinks
+    worse than a single law the proposal found there (:mod:`.sinking_law`).
+
+    Attributes:
+        effect: the added effect.
+        axis: ``z`` (vertical) or ``h`` (forward).
+        term_explained: what the effect's own law explains of the equation error beyond ζ,
+            its main parameter fitted there [N RMS, foot level].
+        law: the proposal's features on the axis (one law).
+        law_explained: what that law explains beyond ζ [N RMS].
+        share: the least share of ``law_explained`` the effect must explain.
+    """
+
+    effect: str
+    axis: str
+    term_explained: float
+    law: tuple[str, ...]
+    law_explained: float
+    share: float
+
+    def sentence(self) -> str:
+        axis = "vertical" if self.axis == "z" else "forward"
+        return (f"the {axis} foot force while the sole sinks follows a simpler law of the "
+                f"proposal better ({', '.join(self.law)}: it explains "
+                f"{self.law_explained:.1f} N RMS beyond ζ, {self.effect}'s own law fitted "
+                f"there {self.term_explained:.1f} N — "
+                f"{100 * self.term_explained / max(self.law_explained, 1e-12):.0f} %, "
+                f"{100 * self.share:.0f} % would match it; docs/validation.md §3.7)")
+
+
 def force_leftover_sentence(items: Sequence[ForceLeftover]) -> str:
     """The axes the additions leave unexplained, in one sentence ("" for none)."""
     if not items:
@@ -181,5 +213,5 @@ def force_leftover_sentence(items: Sequence[ForceLeftover]) -> str:
             "there (docs/validation.md §3.7)")
 
 
-__all__ = ["ForceLeftover", "force_leftover_sentence", "FORCE_STAGE_WORDS", "ChannelChange",
+__all__ = ["ForceLeftover", "LawPreferred", "force_leftover_sentence", "FORCE_STAGE_WORDS", "ChannelChange",
            "CoefficientCheck", "Acceptance", "StrengthTwin"]

@@ -139,9 +139,10 @@ def force_starts(problem: Problem, candidates: CandidateSet,
     return tuple(out)
 
 
-def fit_start(name: str, candidates: CandidateSet, states, fs,
-              zeta: float) -> ForceStart | None:
-    """One candidate's :class:`ForceStart` (None: it exerts no force on the samples)."""
+def fit_start(name: str, candidates: CandidateSet, states, fs, zeta: float,
+              axes: Sequence[str] = AXES) -> ForceStart | None:
+    """One candidate's :class:`ForceStart` on ``axes`` (None: it exerts no force on the
+    samples there)."""
     info = candidates.infos[name]
     spec = info.params[info.main]
     values = info.resolve_params({})
@@ -152,7 +153,7 @@ def fit_start(name: str, candidates: CandidateSet, states, fs,
                      else grid[0]))
     every = np.ones(fs.n, bool)
     fits = []
-    for ax in AXES:
+    for ax in axes:
         if not np.any(np.abs(probe[ax]) > 1e-9):
             continue
         y, J = fs.target[ax], fs.nuisance[ax]

@@ -32,6 +32,7 @@ from .localise import localise_models, where_summary
 from .problem import Problem, load_problem
 from .proposal import pointed_proposal, propose_terms
 from .refine import refine
+from .sinking_law import law_preferred
 from .report import figures as make_figures
 from .report import write_outputs
 from .residuals import compute_residuals, replay_rmse
@@ -179,10 +180,12 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     t0 = _time.perf_counter()
     force_left = added_force_leftover(problem, cands, cal.theta, ref.selected, ref.fitted,
                                       seed=seed) if proposal is not None else ()
+    # an added term whose own law fits the sinking-sample force worse (sinking_law.py)
+    law_pref = law_preferred(problem, cands, cal.theta, ref.selected, proposal)
     timing["force_leftover"] = _time.perf_counter() - t0
     vin = VerdictInputs(ref.selected, ref.ranking, ref.refined_heldout, loc.after, loc.before,
                         ref.acceptance, scr.indistinguishable, coverage.indistinguishable,
-                        scr.strength_twins, force_left, ref.steps)
+                        scr.strength_twins, force_left, ref.steps, law_pref)
     verdict = decide(vin)
     best = best_candidate_statement(vin)
     verdict, proposal = pointed_proposal(verdict, best, proposal, out, str(data_dir))
@@ -208,7 +211,8 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
                            loc.after.n_major_cells),
         design, Recommended.for_fit(theta, ref.fitted), timing, (), warns, ref.acceptance,
         best, out, proposal, strength_twins=tuple(scr.strength_twins),
-        not_twins=scr.not_twins, force_left=force_left, force_starts=starts)
+        not_twins=scr.not_twins, force_left=force_left, force_starts=starts,
+        law_preferred=law_pref)
     if out is None:
         return diag
     figs = (make_figures(out, loc.before, loc.after, ref.ranking, problem.channels,

@@ -271,6 +271,7 @@ def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
         lines += [f"* {s}" for s in loc.unexplained_where] or ["* no structure left"]
         if d.force_left:
             lines.append(f"* {force_leftover_sentence(d.force_left)}")
+        lines += [f"* {lp.sentence()}" for lp in d.law_preferred]
         red = d.heldout_reduction_by_channel
         if red:
             lines += ["", "| channel | held-out RMS before | after | reduction |", "|---|---|---|---|"]

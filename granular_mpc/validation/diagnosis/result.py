@@ -15,7 +15,7 @@ from typing import Any, Mapping
 from ...output import json_safe
 from ..calibrate import Calibration
 from .acceptance_records import (Acceptance, ChannelChange, CoefficientCheck, ForceLeftover,
-                                 StrengthTwin)
+                                 LawPreferred, StrengthTwin)
 from .localization_records import Localization
 from .proposal_records import Proposal
 from .ranking_records import ForceStart, Ranked
@@ -285,6 +285,8 @@ class Diagnosis(Record):
         force_starts: the user's and proposed terrain-force terms fitted on the foot-force
             equation error with ζ (:mod:`.force_start`); those that pass were also refined
             from there.
+        law_preferred: added terrain forces whose own law fits the sinking-sample force
+            worse than a single law of the proposal (:mod:`.sinking_law`).
     """
 
     data: str
@@ -310,6 +312,7 @@ class Diagnosis(Record):
     not_twins: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
     force_left: tuple[ForceLeftover, ...] = field(default=(), metadata=OMIT_EMPTY)
     force_starts: tuple[ForceStart, ...] = field(default=(), metadata=OMIT_EMPTY)
+    law_preferred: tuple[LawPreferred, ...] = field(default=(), metadata=OMIT_EMPTY)
 
     @property
     def added(self) -> list[str]:

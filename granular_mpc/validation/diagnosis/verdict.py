@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 from typing import Callable, Sequence
 
 from .acceptance import cell_words, remaining_cells
-from .acceptance_records import Acceptance, ForceLeftover, force_leftover_sentence
+from .acceptance_records import Acceptance, ForceLeftover, LawPreferred, force_leftover_sentence
 from .localise import where_summary
 from .localization_records import Localization
 from .ranking_records import Ranked
@@ -50,6 +50,8 @@ class VerdictInputs:
             leave unexplained (:mod:`.force_leftover`).
         steps: the selection's contests (:class:`~.result.SelectionStep`: the refined
             contenders and their AICc, the exchange included).
+        law_preferred: added terrain forces whose own law fits the sinking-sample force
+            worse than a single law of the proposal (:mod:`.sinking_law`).
     """
 
     selected: tuple[str, ...]
@@ -63,6 +65,7 @@ class VerdictInputs:
     strength_twins: tuple[StrengthTwin, ...] = ()
     force_left: tuple[ForceLeftover, ...] = ()
     steps: tuple[SelectionStep, ...] = ()
+    law_preferred: tuple[LawPreferred, ...] = ()
 
     def near_ties(self, name: str) -> tuple[tuple[str, float], ...]:
         """The contenders of the last contest ``name`` won that were not added and whose
@@ -298,6 +301,7 @@ def best_candidate_statement(v: VerdictInputs) -> str:
                            "added" for e in v.leftover_evidence) + ")")
         if v.force_left:
             why.append(force_leftover_sentence(v.force_left))
+        why += [lp.sentence() for lp in v.law_preferred if lp.effect == name]
         if twins:
             why.append(f"the data cannot tell it from {', '.join(twins)}")
         ties = v.near_ties(name)
