@@ -44,7 +44,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from recovery import DEFAULT_EFFECTS
+from recovery import DEFAULT_EFFECTS, case_tag
 
 PROPRIO = ("intrusion", "foot_force", "trunk_position", "trunk_linear_velocity")
 #: variant → (groups removed, keep the contact stance labels)
@@ -194,7 +194,7 @@ def main() -> None:
                   else [100 + k for k in range(args.nulls)])
     cases += [(None, s) for s in null_seeds]
     for effect, seed in cases:
-        tag = f"{effect.split(':')[0] if effect else 'null'}_s{seed}"
+        tag = case_tag(effect, None, seed)
         clean, noisy = root / f"{tag}_clean", root / f"{tag}_n{args.level:g}"
         if not (args.reuse and (noisy / "meta.yaml").is_file()):
             synthesize("sand_walk", clean, speeds=args.speeds, steps=args.steps, seed=seed,

@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import tempfile
 import time
@@ -303,6 +304,23 @@ def study_figures(rows: list[dict]) -> dict:
     }
 
 
+def case_tag(effect: str | None, mismatch: str | None, seed: int,
+             several_mismatches: bool = False) -> str:
+    """The folder tag of one case: ``<effect>_s<seed>`` (the effect's parameters appended
+    when given, ``depth_hardening_n_1.3_s4``: two magnitudes of one effect in a run must
+    not write the same folders), ``mismatch_s<seed>`` (the override appended when the run
+    has several), ``null_s<seed>``."""
+    def clean(text: str) -> str:
+        return re.sub(r"[^A-Za-z0-9.]+", "_", text).strip("_")
+
+    if effect:
+        name, _, params = effect.partition(":")
+        return f"{name}_{clean(params)}_s{seed}" if params else f"{name}_s{seed}"
+    if mismatch:
+        return f"mismatch_{clean(mismatch)}_s{seed}" if several_mismatches else f"mismatch_s{seed}"
+    return f"null_s{seed}"
+
+
 def add_signal(row: dict, root: Path) -> dict:
     """Put the case's ``signal`` (max_c s_c / σ_c), ``signal_channel``, ``signal_moved`` /
     ``signal_moved_channel`` (max_c m_c / σ_c) and ``signal_floor`` / ``signal_floor_channel``
@@ -314,7 +332,7 @@ def add_signal(row: dict, root: Path) -> dict:
         row.update(signal=None, signal_channel=None, signal_moved=None,
                    signal_moved_channel=None, signal_floor=None, signal_floor_channel=None)
         return row
-    tag = f"{effect.split(':')[0]}_s{row['seed']}"
+    tag = case_tag(effect, None, row["seed"])
     cs = case_signal(root, tag, row["noise"], effect, row["seed"])
     row.update(signal=cs.signal.value, signal_channel=cs.signal.channel,
                signal_moved=cs.moved.value, signal_moved_channel=cs.moved.channel,
@@ -419,8 +437,7 @@ def main() -> None:
     cases += [(None, None, 100 + k) for k in range(args.nulls)]
     cases += [(None, m, 200 + s) for m in args.mismatch for s in args.seeds]
     for effect, mismatch, seed in cases:
-        kind = effect.split(":")[0] if effect else ("mismatch" if mismatch else "null")
-        tag = f"{kind}_s{seed}"
+        tag = case_tag(effect, mismatch, seed, len(args.mismatch) > 1)
         clean = root / f"{tag}_clean"
         if not (args.reuse and (clean / "meta.yaml").is_file()):
             synthesize("sand_walk", clean, speeds=SPEEDS, steps=args.steps, seed=seed,

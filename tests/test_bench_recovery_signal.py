@@ -1,5 +1,6 @@
-"""The recovery study's signal (bench/recovery_signal.py) and its ≥ 2 σ figures
-(bench/recovery.py's study_figures), on small hand-made inputs: no replay, no diagnosis."""
+"""The recovery study's signal (bench/recovery_signal.py), its ≥ 2 σ figures
+(bench/recovery.py's study_figures) and its case folders (case_tag), on small hand-made
+inputs: no replay, no diagnosis."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import pandas as pd
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
-from recovery import study_figures  # noqa: E402
+from recovery import case_tag, study_figures  # noqa: E402
 from recovery_signal import (effect_signature, largest_ratio, noise_sigma,  # noqa: E402
                              signal_from)
 
@@ -73,3 +74,17 @@ def test_study_figures_keep_all_cases_beside_the_signal2_population():
     assert f["coef_within_15pct_rate_signal2"] == pytest.approx(0.5)
     assert f["cases_moved2"] == 2 and f["rank1_rate_moved2"] == pytest.approx(0.5)
     assert f["coef_within_15pct_rate_moved2"] == pytest.approx(0.5)
+
+
+def test_two_magnitudes_of_one_effect_get_their_own_folders():
+    """An effect given with its parameters gets them in its tag (two magnitudes of one
+    effect in a run wrote the same folders before); the default tags stay as they were, so
+    stored studies are still reused; several mismatches get one tag each."""
+    assert case_tag("depth_hardening", None, 4) == "depth_hardening_s4"
+    assert case_tag("depth_hardening:n=1.3", None, 4) == "depth_hardening_n_1.3_s4"
+    assert case_tag("depth_hardening:n=1.3", None, 4) != case_tag("depth_hardening:n=1.5", None, 4)
+    assert case_tag(None, "terrain.zeta=1.768", 201) == "mismatch_s201"
+    many = {case_tag(None, m, 201, several_mismatches=True)
+            for m in ("terrain.zeta=1.768", "terrain.phi_s_deg=33")}
+    assert len(many) == 2
+    assert case_tag(None, None, 100) == "null_s100"
