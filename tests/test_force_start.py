@@ -145,3 +145,6 @@ def test_a_users_term_the_calibration_absorbed_is_added_from_its_force_start(
     assert d.fitted_effects[USER_LOOSE]["k"] == pytest.approx(1000.0, rel=0.15)
     assert d.calibration.values["zeta"] == pytest.approx(1.36, abs=0.06)
     assert [s.effect for s in d.force_starts] == [USER_LOOSE]    # the library: never started
+    report = (d.out_dir / "report.md").read_text(encoding="utf-8")
+    assert f"* {USER_LOOSE}: k = {start.value:.4g} N/m with ζ = {start.zeta:.3g}" in report
+    assert "refined from there" in report

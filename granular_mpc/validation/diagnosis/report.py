@@ -293,11 +293,14 @@ def force_start_lines(d: Diagnosis) -> list[str]:
            f"Fitted with ζ free on the sinking samples (the calibration's ζ = {zeta:.3g}); a "
            "term that meets the evidence rule is also refined by the replays from there "
            "(docs/validation.md §3.3, \"The force start\").", ""]
+    units = {(r.effect, k): e.unit for r in d.ranking for k, e in r.params.items()}
     for s in d.force_starts:
         axis = "vertical" if s.axis == "z" else "forward"
+        unit = units.get((s.effect, s.param), "")
+        unit = f" {unit}" if unit and unit != "-" else ""
         verdict = ("refined from there" if s.passes else
                    "below the evidence rule: refined from the screening's estimate only")
-        out.append(f"* {s.effect}: {s.param} = {s.value:.4g} with ζ = {s.zeta:.3g}; {axis} "
+        out.append(f"* {s.effect}: {s.param} = {s.value:.4g}{unit} with ζ = {s.zeta:.3g}; {axis} "
                    f"force error {s.rms_before:.2f} → {s.rms_after:.2f} N RMS (explains "
                    f"{s.explained:.1f} N), held-out "
                    f"{f'{-100 * s.heldout_reduction:+.0f}'.replace('-', '−')} % — "
