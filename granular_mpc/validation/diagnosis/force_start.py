@@ -90,8 +90,8 @@ def best_value(force: Callable[[float], np.ndarray], y: np.ndarray, J: np.ndarra
                               options={"xatol": 1e-6 * max(abs(hi - lo), 1e-12)})
         if opt.success and opt.fun < scores[k]:
             best = float(opt.x)
-    r = y[rows] - cache.get(best, force(best))[rows]
-    return best, _zeta_fit(r, J[rows]), rss(best)
+    final = rss(best)                       # (cached from here on)
+    return best, _zeta_fit(y[rows] - cache[best][rows], J[rows]), final
 
 
 def heldout_reduction(force: Callable[[float], np.ndarray], y: np.ndarray, J: np.ndarray,
@@ -117,8 +117,9 @@ def force_starts(problem: Problem, candidates: CandidateSet,
     """The equation-error fit of every terrain-force candidate that is not a package
     effect, has one magnitude parameter and acts on the sinking samples (the module
     docstring): per candidate, the axis with the larger explained force among those that
-    pass, else that axis anyway (with ``passes`` False); () without enough sinking samples
-    or such candidates. A fit outside the parameter's physical range does not pass.
+    pass, else the axis with the larger explained force (``passes`` False); () without
+    enough sinking samples or such candidates. A fit outside the parameter's physical
+    range does not pass.
 
     Args:
         problem: the diagnosis problem; theta: the calibrated parameters (ζ).
