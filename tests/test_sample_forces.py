@@ -1,7 +1,7 @@
 """A terrain-force effect on the sinking samples (``validation.diagnosis.sample_forces``):
 the sole's submerged area against the circle, library effects at the measured state
 against their laws evaluated by hand, and the one-parameter force function against the
-same effect evaluated at fixed parameters."""
+same effect traced at fixed parameters."""
 
 from __future__ import annotations
 
@@ -12,8 +12,7 @@ import pytest
 
 from granular_mpc.config import load_robot
 from granular_mpc.effects import effect_info
-from granular_mpc.validation.diagnosis.sample_forces import (effect_force_columns,
-                                                             force_function, sinking_states,
+from granular_mpc.validation.diagnosis.sample_forces import (force_function, sinking_states,
                                                              submerged_area)
 from sinking import sinking_columns
 
@@ -44,8 +43,9 @@ def test_library_effects_at_the_measured_state_match_their_laws_evaluated_by_han
     law_h, law_z = np.full(c["depth"].size, 20.0), np.full(c["depth"].size, 150.0)
     fx = [(effect_info("inertial_drag"), {"c_d": 4.0}),
           (effect_info("cohesion"), {"suction": 3000.0, "release": 0.003})]
-    out = effect_force_columns(fx, c, law_h, law_z, n_slices=n_sl, radius=foot.radius,
-                               chord=foot.chord, width=foot.width, density=RHO, dt=0.002)
+    states = sinking_states(c, law_h, law_z, n_slices=n_sl, radius=foot.radius,
+                            chord=foot.chord, width=foot.width, density=RHO, dt=0.002)
+    out = {info.name: force_function(states, info, values)(None) for info, values in fx}
     area = submerged_area(c["depth"], foot.radius, foot.chord, foot.width / n_sl)
     speed = np.sqrt(c["v_h"] ** 2 + c["v_l"] ** 2 + c["v_z"] ** 2 + 1e-12)
     k = -0.5 * 4.0 * RHO * area * speed * n_sl
@@ -58,24 +58,21 @@ def test_library_effects_at_the_measured_state_match_their_laws_evaluated_by_han
 
 
 def test_the_force_function_of_one_parameter_is_the_effect_at_that_value():
-    """force_function(…, free="c_d")(v) equals effect_force_columns at c_d = v for every
-    v (inertial drag is linear in c_d: twice the coefficient, twice the force), and with
-    no free parameter it is the effect at its given values."""
+    """force_function(…, free="c_d")(v) — c_d a CasADi input — equals the effect traced
+    at c_d = v as a number, for every v (inertial drag is linear in c_d: twice the
+    coefficient, twice the force)."""
     foot = _foot()
     n_sl = int(foot.slices)
     c = sinking_columns(30, seed=5)
     law_h, law_z = np.full(30, 15.0), np.full(30, 120.0)
-    kw = dict(n_slices=n_sl, radius=foot.radius, chord=foot.chord, width=foot.width,
-              density=RHO, dt=0.002)
     info = effect_info("inertial_drag")
-    states = sinking_states(c, law_h, law_z, **kw)
+    states = sinking_states(c, law_h, law_z, n_slices=n_sl, radius=foot.radius,
+                            chord=foot.chord, width=foot.width, density=RHO, dt=0.002)
     fn = force_function(states, info, {"c_d": 1.0}, free="c_d")
     for v in (0.5, 2.0, 7.0):
-        ref = effect_force_columns([(info, {"c_d": v})], c, law_h, law_z, **kw)[info.name]
+        ref = force_function(states, info, {"c_d": v})(None)
         got = fn(v)
         assert got["z"] == pytest.approx(ref["z"], rel=1e-12)
         assert got["h"] == pytest.approx(ref["h"], rel=1e-12)
     assert fn(4.0)["z"] == pytest.approx(2.0 * fn(2.0)["z"], rel=1e-12)
-    fixed = force_function(states, info, {"c_d": 3.0})
-    assert fixed(None)["z"] == pytest.approx(fn(3.0)["z"], rel=1e-12)
     assert np.all(fn(2.0)["z"] > 0.0)             # the drag opposes the sinking (v_z < 0)

@@ -177,10 +177,5 @@ def fit_start(name: str, candidates: CandidateSet, states, fs, zeta: float,
     return max(fits, key=lambda s: (s.passes, s.explained))
 
 
-def passing(starts: Sequence[ForceStart]) -> tuple[ForceStart, ...]:
-    """The starts that meet the evidence rule."""
-    return tuple(s for s in starts if s.passes)
-
-
 __all__ = ["ForceStart", "force_starts", "fit_start", "best_value", "heldout_reduction",
-           "search_grid", "is_package_effect", "passing", "GRID_POINTS"]
+           "search_grid", "is_package_effect", "GRID_POINTS"]

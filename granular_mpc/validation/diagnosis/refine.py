@@ -298,11 +298,12 @@ def one_per_effect(tried: Sequence[tuple], chosen: GaussNewtonFit) -> list[tuple
     """The refined contenders of a contest, one per effect (an effect refined from its
     screening estimate and from its force start has two): the added one's ``chosen`` fit,
     each other's lowest AICc; in AICc order."""
+    added = next(t[1].effect for t in tried if t[2] is chosen)
     out: dict[str, tuple] = {}
     for t in sorted(tried, key=lambda t: t[0]):
-        if t[2] is chosen or (t[1].effect not in out and not any(
-                u[2] is chosen and u[1].effect == t[1].effect for u in tried)):
-            out[t[1].effect] = t
+        effect = t[1].effect
+        if t[2] is chosen or (effect != added and effect not in out):
+            out[effect] = t
     return sorted(out.values(), key=lambda t: t[0])
 
 

@@ -132,24 +132,6 @@ def equation_states(problem, theta: Mapping[str, float]) -> tuple[ForceSamples, 
     return fs, states
 
 
-def effect_force_columns(effects: Sequence[tuple[EffectInfo, Mapping[str, float]]],
-                         cols: Mapping[str, np.ndarray], law_h: np.ndarray,
-                         law_z: np.ndarray, *, n_slices: int, radius: float, chord: float,
-                         width: float, density: float, dt: float
-                         ) -> dict[str, dict[str, np.ndarray]]:
-    """Each terrain-force effect's force on the foot at the sinking samples (the module
-    docstring's patch state): effect → axis (``h`` forward, ``z`` vertical) → column [N].
-
-    Args:
-        effects: (effect, its parameter values).
-        cols, law_h, law_z, n_slices, radius, chord, width, density, dt: as
-            :func:`sinking_states`.
-    """
-    states = sinking_states(cols, law_h, law_z, n_slices=n_slices, radius=radius,
-                            chord=chord, width=width, density=density, dt=dt)
-    return {info.name: force_function(states, info, values)(None) for info, values in effects}
-
-
 def force_function(states: SinkingStates, info: EffectInfo, values: Mapping[str, float],
                    free: str | None = None) -> Callable[[float | None], dict[str, np.ndarray]]:
     """The effect's foot force on the samples, as a function of one parameter.
@@ -184,5 +166,5 @@ def force_function(states: SinkingStates, info: EffectInfo, values: Mapping[str,
     return at
 
 
-__all__ = ["SinkingStates", "sinking_states", "equation_states", "effect_force_columns",
-           "force_function", "submerged_area"]
+__all__ = ["SinkingStates", "sinking_states", "equation_states", "force_function",
+           "submerged_area"]

@@ -26,7 +26,7 @@ from .acceptance_records import LawPreferred
 from .candidates import CandidateSet
 from .force_start import fit_start
 from .problem import Problem
-from .proposal import explained_rms, proposed_effects
+from .proposal import explained_rms, law_stages, proposed_effects
 from .proposal_records import Proposal
 from .sample_forces import equation_states
 
@@ -38,7 +38,7 @@ from .sample_forces import equation_states
 #: 0.74 and 0.76; 0.8 lies between. Checked on held-out seeds (§5.3.16)
 LAW_SHARE = 0.8
 #: the proposal's stages that fit one law (:func:`.proposal.law_stages`)
-SINGLE_LAW_STAGES = ("law", "per_foot", "layer")
+SINGLE_LAW_STAGES = tuple(dict.fromkeys(stage for stage, _, _ in law_stages("z")))
 
 
 def law_preferred(problem: Problem, candidates: CandidateSet, theta: Mapping[str, float],
