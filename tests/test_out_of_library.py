@@ -247,6 +247,36 @@ def test_detectable_against_the_calibrated_baseline(ool):
     assert "| … found among those | 0/1 |" in ool.targets_table([row, bare])
 
 
+def test_found_against_the_model_file(ool):
+    """The other reading of "affected error −50 %": the feedback run's RMSE against the
+    model file's (the truth replay's before). The hard layer above: −19 % against the
+    calibrated model (not found), −68 % against the model file (found); a run that did
+    not replay the channel, or a case without the truth's replay, is never found so."""
+    hl = ool.Case("hard_layer_m1_s1", 1, "hard_layer", 8000.0)
+    row = {"case": hl.__dict__,
+           "lib": _run("partially_explained", ["elastic_unloading"],
+                       {"intrusion_z": [0.0018, 0.0015]}),
+           "proposal": None,
+           "fb": _run("partially_explained", ["user_hard_layer"],
+                      {"intrusion_z": [0.0016, 0.0013]}),
+           "truth_replay": {"intrusion_z": [0.004, 0.0012]}}
+    s = ool.score(row)
+    assert not s["found"] and s["fb_red"] == pytest.approx(1 - 0.0013 / 0.0016)
+    assert s["found_model_file"] and s["fb_red_file"] == pytest.approx(1 - 0.0013 / 0.004)
+    # the rank still counts: a library proxy first is no find on either scale
+    proxy = {**row, "fb": _run("partially_explained", ["elastic_unloading"],
+                               {"intrusion_z": [0.0016, 0.0013]})}
+    assert not ool.score(proxy)["found_model_file"]
+    no_truth = {**row, "truth_replay": {}}
+    t = ool.score(no_truth)
+    assert math.isnan(t["fb_red_file"]) and not t["found_model_file"]
+    figs = ool.figures([row, proxy, no_truth])
+    assert figs["ool_found_rate_model_file"] == pytest.approx(1 / 3)
+    assert ("| … the same with the affected error measured against the model file (the "
+            "user's model before the workbench; the baseline of 'detectable') | 1/3 | ≥ 70 % |"
+            in ool.targets_table([row, proxy, no_truth]))
+
+
 def test_pairs_both_found_the_partner_coefficient_and_the_detectable_pairs(ool):
     """A pair is found when its final run (the feedback run, else the library run) adds the
     library partner and the form's term; the partner's coefficient is read in that run,
