@@ -317,6 +317,16 @@ def build_cases(forms, seeds, magnitudes, pairs: bool, mismatches) -> list[Case]
             cases.append(Case(f"pair_{lib.split(':')[0]}+{n}_s{seeds[0]}", seeds[0], n,
                               FORM_BY_NAME[n].magnitudes[0], lib, par))
     for m in mismatches:
-        key = m.split("=")[0].split(".")[-1]
-        cases.append(Case(f"null_{key}_s{100 + seeds[0]}", 100 + seeds[0], mismatch=m))
+        cases.append(Case(f"null_{mismatch_tag(m)}_s{100 + seeds[0]}", 100 + seeds[0],
+                          mismatch=m))
     return cases
+
+
+def mismatch_tag(mismatch: str) -> str:
+    """A null set's mismatch in its folder tag: the key's last part and the value
+    (``terrain.contact_damping=300`` → ``contact_damping_300``). The value is in it so that
+    two values of one key — in one run, or in two runs into the same ``--out`` with
+    ``--reuse`` — never share a folder (they did: the later overwrote the earlier)."""
+    key, _, value = mismatch.partition("=")
+    safe = "".join(ch if ch.isalnum() or ch in ".-" else "_" for ch in value.strip())
+    return f"{key.split('.')[-1]}_{safe}"

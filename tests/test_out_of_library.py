@@ -128,6 +128,11 @@ def test_cases_quick_and_full(ool):
     # no forms (`--forms` with nothing): the null sets only
     nulls = ool.build_cases([], [1], 2, False, ool.MISMATCHES)
     assert [c.group for c in nulls] == ["null"] * len(ool.MISMATCHES)
+    # two values of one key are two folders
+    two = ool.build_cases([], [9], 1, False, ["terrain.contact_damping=300",
+                                               "terrain.contact_damping=50"])
+    assert [c.tag for c in two] == ["null_contact_damping_300_s109",
+                                    "null_contact_damping_50_s109"]
 
 
 def _run(status, added, replay, rank1="", answer=False, fitted=None, worsened=()):
