@@ -18,6 +18,10 @@ structure that flagged the missing effect must be explained (``docs/validation.m
   physical interval of its :class:`~granular_mpc.effects.Param` (``wrong sign`` when it is
   on the other side of the neutral value). Such a fit is reported with its flag and not
   added. Other parameters' flags are notes.
+* **Joint torques** (:mod:`.torque_evidence`): a joint term on data that measure the joint
+  torques and the trunk motion must be held by the joint-torque equation error — the
+  stance-grouped 95 % interval of the share of its torque the error holds lies above
+  :data:`.torque_evidence.MIN_HELD_SHARE` and reaches :data:`.torque_evidence.MIN_REACH`.
 * **Explained structure** (:func:`remaining_cells`): the major cells of the calibrated
   model's localisation that are still major (|t| ≥ T_CELL, |bias| ≥ MAJOR_BIAS σ and ≥
   the practical floor √(σ² + σ_meas²), :func:`.localise.practical_floor`) after the
@@ -36,7 +40,7 @@ import numpy as np
 
 from ...effects import EffectInfo
 from ..prepare import channel_unit
-from .acceptance_records import Acceptance, ChannelChange, CoefficientCheck
+from .acceptance_records import Acceptance, ChannelChange, CoefficientCheck, TorqueEvidence
 from .localization_records import Cell, Localization
 
 #: channels moved by at least this share of the most-moved one are credited to the term
@@ -128,13 +132,15 @@ def credited_channels(windows, channels: Sequence[str], sigma: Mapping[str, floa
 
 def judge(windows, channels: Sequence[str], sigma: Mapping[str, float], info: EffectInfo,
           fitted: Mapping[str, float], before: Sequence[dict],
-          after: Sequence[dict]) -> Acceptance:
+          after: Sequence[dict], torque: TorqueEvidence | None = None) -> Acceptance:
     """Decide whether a refined candidate is added (see the module docstring).
 
     Args:
         windows: the stance windows; channels: scored channels; sigma: channel → σ_c.
         info: the candidate; fitted: its refined parameters.
         before, after: per-window replay outputs without and with it.
+        torque: for a joint term, whether the measured joint torques hold its torque
+            (:func:`.torque_evidence.torque_evidence`; None: not tested).
     """
     credited = credited_channels(windows, channels, sigma, before, after)
     changes = {}
@@ -156,7 +162,10 @@ def judge(windows, channels: Sequence[str], sigma: Mapping[str, float], info: Ef
         if chk.status == "ok":
             continue
         (reasons if k == 0 else notes).append(chk.text)
-    return Acceptance(info.name, not reasons, changes, checks, tuple(reasons), tuple(notes))
+    if torque is not None and not torque.holds:
+        reasons.append(torque.text())
+    return Acceptance(info.name, not reasons, changes, checks, tuple(reasons), tuple(notes),
+                      torque=torque)
 
 
 def _same_cell(a: Cell, b: Cell) -> bool:

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
-from .records import OMIT_EMPTY, Record
+from .records import OMIT_EMPTY, OMIT_NONE, Record
 
 
 @dataclass(frozen=True)
@@ -35,6 +35,48 @@ class CoefficientCheck(Record):
 
 
 @dataclass(frozen=True)
+class TorqueEvidence(Record):
+    """Whether the measured joint torques hold a joint term's torque
+    (:mod:`.torque_evidence`).
+
+    Attributes:
+        rms_torque: the term's torque on the swing-leg rows of the joint-torque equation
+            error, at its fitted values [N·m RMS, all joints].
+        held_share: the share of it the equation error holds: the least-squares slope of
+            the error on the term's torque, pooled over the joints, each joint's mean
+            removed (1: the torques hold all of it; 0: none).
+        ci: the stance-grouped bootstrap 95 % interval of ``held_share``.
+        n_rows, n_stances: the rows (row × joint) and stance segments of the fit.
+        min_share: the share the interval must lie above (:data:`.torque_evidence.MIN_HELD_SHARE`).
+        min_reach: the share the interval must reach (:data:`.torque_evidence.MIN_REACH`).
+    """
+
+    rms_torque: float
+    held_share: float
+    ci: tuple[float, float]
+    n_rows: int
+    n_stances: int
+    min_share: float = 0.0
+    min_reach: float = 0.5
+
+    @property
+    def holds(self) -> bool:
+        """The torques hold a positive share of the term's torque (the interval lies above
+        ``min_share``) and may hold ``min_reach`` of it (the interval reaches it)."""
+        return self.ci[0] > self.min_share and self.ci[1] >= self.min_reach
+
+    def text(self) -> str:
+        """The refusal in words."""
+        lo, hi = self.ci
+        return (f"the measured joint torques do not hold its torque: on the swing-leg rows "
+                f"of the joint-torque equation error it adds {self.rms_torque:.3g} N·m RMS, "
+                f"of which the error holds {100 * self.held_share:+.0f} % (95 % CI "
+                f"{100 * lo:+.0f} … {100 * hi:+.0f} %; a joint term of the robot lies above "
+                f"{100 * self.min_share:.0f} % and reaches {100 * self.min_reach:.0f} %, "
+                f"docs/validation.md §3.3)")
+
+
+@dataclass(frozen=True)
 class Acceptance(Record):
     """Whether a refined candidate was added, and why (not).
 
@@ -51,6 +93,8 @@ class Acceptance(Record):
             addition the candidate may be refined and judged again.
         dropped: it had been added, and was dropped when judged again against the final
             model (``given``: the others).
+        torque: for a joint term on data that measure the joint torques and the trunk
+            motion, whether the torques hold its torque (None: not tested).
     """
 
     effect: str
@@ -61,6 +105,7 @@ class Acceptance(Record):
     notes: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
     given: tuple[str, ...] = field(default=(), metadata=OMIT_EMPTY)
     dropped: bool = field(default=False, metadata=OMIT_EMPTY)
+    torque: TorqueEvidence | None = field(default=None, metadata=OMIT_NONE)
 
 
 @dataclass(frozen=True)
@@ -214,4 +259,4 @@ def force_leftover_sentence(items: Sequence[ForceLeftover]) -> str:
 
 
 __all__ = ["ForceLeftover", "LawPreferred", "force_leftover_sentence", "FORCE_STAGE_WORDS", "ChannelChange",
-           "CoefficientCheck", "Acceptance", "StrengthTwin"]
+           "CoefficientCheck", "Acceptance", "StrengthTwin", "TorqueEvidence"]

@@ -398,20 +398,38 @@ def fit_joint_terms(s: JointSamples, joint_names: Sequence[str], *, seed: int = 
             tuple(sorted(fits, key=lambda f: order[f.joint])))
 
 
+#: the data groups the joint equation error needs (RNEA on the measured trunk motion)
+EQUATION_GROUPS = ("trunk_position", "trunk_orientation", "trunk_linear_velocity",
+                   "trunk_angular_velocity", "joint_torques", "foot_force")
+
+
+def missing_groups(dataset) -> list[str]:
+    """The groups of :data:`EQUATION_GROUPS` the data set does not measure."""
+    return [g for g in EQUATION_GROUPS if not dataset.has(g)]
+
+
+def equation_rows(dataset, biped: Biped, rate_hz: float) -> JointSamples | None:
+    """The joint equation-error rows of a data set, the torques at the delay its held
+    commands imply (:func:`.held_torque.hold_delay`); None when it does not measure every
+    group of :data:`EQUATION_GROUPS`."""
+    if missing_groups(dataset):
+        return None
+    return joint_samples(dataset.trials, biped, rate_hz,
+                         torque_delay=hold_delay(dataset.meta.torque_hold_s))
+
+
 def propose_joint_terms(dataset, biped: Biped, rate_hz: float, *, seed: int = 0
                         ) -> tuple[tuple[JointTerm, ...], tuple[JointFit, ...], str]:
     """The joint-axis proposal of a data set: (terms, per-joint fits, note).
 
     Nothing is proposed without the trunk pose and twist (``base_*``) or the joint torques.
     """
-    need = ("trunk_position", "trunk_orientation", "trunk_linear_velocity",
-            "trunk_angular_velocity", "joint_torques", "foot_force")
-    missing = [g for g in need if not dataset.has(g)]
+    missing = missing_groups(dataset)
     if missing:
         return (), (), ("joint proposal not available: the data set does not measure "
                         + ", ".join(missing) + " (RNEA needs the measured trunk motion)")
     hold = dataset.meta.torque_hold_s
-    s = joint_samples(dataset.trials, biped, rate_hz, torque_delay=hold_delay(hold))
+    s = equation_rows(dataset, biped, rate_hz)
     terms, fits = fit_joint_terms(s, biped.joint_names, seed=seed)
     held = (f" The torques are commands held {1e3 * hold:g} ms (meta.yaml torque_hold_s): "
             f"τ(t − {1e3 * s.torque_delay:g} ms) acts at t." if hold else
@@ -547,6 +565,7 @@ def joint_effect_names(terms: Sequence[JointTerm]) -> tuple[str, ...]:
 
 __all__ = ["JointSamples", "joint_samples", "trial_equation_error", "kept_rows", "footprint_exit",
            "feature_matrix", "nuisance_matrix", "fit_joint_terms", "propose_joint_terms",
+           "equation_rows", "missing_groups", "EQUATION_GROUPS",
            "joint_torque", "joint_effect_source", "joint_effect_names", "joint_report_lines",
            "JOINT_FEATURES", "PROPOSED_JOINT", "PROPOSED_SENSOR", "MIN_JOINT_REDUCTION",
            "MIN_EXPLAINED_RMS", "JOINT_NOTE", "joint_passes", "sensor_gain", "MAX_SENSOR_GAIN",

@@ -28,6 +28,7 @@ from .coverage import (assess_candidates, calibration_text, can_calibrate,
                        write_coverage)
 from .force_leftover import ForceLeftover, force_leftover, inapplicable
 from .force_start import force_starts
+from .joint_proposal import equation_rows
 from .localise import localise_models, where_summary
 from .problem import Problem, load_problem
 from .proposal import pointed_proposal, propose_terms
@@ -115,6 +116,9 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     # declared channels (coverage.py): score the measured ones; sensor candidates reading
     # an unmeasured column cannot be assessed
     problem = measured_problem(problem, ds)
+    # the joint-torque equation error a joint term's torque is judged on (torque_evidence.py)
+    problem = replace(problem, joint_rows=equation_rows(ds, problem.biped,
+                                                        problem.sample_rate_hz))
     cands, unreadable = drop_unreadable_sensor_candidates(cands, problem.windows[0],
                                                           problem.joint_names, ds)
     # every sensor candidate tried on the data's columns before any replay

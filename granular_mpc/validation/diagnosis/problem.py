@@ -15,6 +15,7 @@ from ...robot.model import Biped, load_biped
 from ..dataformat import load_dataset
 from ..prepare import StanceWindow, channel_names, stance_windows
 from ..replay.model import ReplayModel, build_replay_model, model_terrain
+from .joint_proposal import JointSamples
 
 #: fewest complete stance phases a diagnosis works with
 MIN_WINDOWS = 4
@@ -35,6 +36,10 @@ class Problem:
         joint_names: actuated joints (actuator order).
         channels: scored channels (format-v1 names).
         edges: stance-phase bin edges [%].
+        joint_rows: the joint-torque equation-error rows (:func:`.joint_proposal.equation_rows`;
+            None when the data set does not measure the joint torques and the trunk motion,
+            or has not been given them): the evidence a joint term's torque is judged on
+            (:mod:`.torque_evidence`).
     """
 
     data_dir: Path
@@ -47,6 +52,7 @@ class Problem:
     joint_names: tuple[str, ...]
     channels: tuple[str, ...]
     edges: np.ndarray
+    joint_rows: JointSamples | None = None
 
     @property
     def trials(self) -> np.ndarray:

@@ -30,6 +30,7 @@ from .residuals import Residuals
 from .result import ConditionalRow, IndistinguishablePair, RefinedHeldout, SelectionStep
 from .screen import (INDISTINGUISHABLE_CORRELATION, Screening, candidate_stats,
                      channel_heldout, indistinguishable, passes_but_inclusion)
+from .torque_evidence import torque_evidence
 
 #: how many times an earlier addition may be dropped (:func:`rejudge_earlier`) and the
 #: forward selection resumed against the reduced model
@@ -192,8 +193,10 @@ def judge_in_model(problem: Problem, pool: ReplayPool, res: Residuals,
     ``name`` (the others at the same values), ``given`` the others."""
     others = [s for s in selected if s != name]
     before = replay_with(pool, res, candidates, fitted, theta, others)
-    return replace(judge(problem.windows, problem.channels, res.sigma, candidates.infos[name],
-                         fitted[name], before, preds), given=tuple(others))
+    info = candidates.infos[name]
+    return replace(judge(problem.windows, problem.channels, res.sigma, info, fitted[name],
+                         before, preds, torque_evidence(problem.joint_rows, info, fitted[name])),
+                   given=tuple(others))
 
 
 def rejected_against(acceptance: Sequence[Acceptance], selected: Sequence[str]) -> set[str]:
@@ -442,9 +445,12 @@ def refine(problem: Problem, candidates: CandidateSet, cal: CalibrationStage, re
                     continue                      # a rival only wins, it is no fallback
                 # the term's own replays: with and without it at the same (co-refitted) θ
                 before = without_term(pool, res, candidates, fit, selected)
-                acc = replace(judge(windows, channels, res.sigma,
-                                    candidates.infos[cand.effect], fit.fitted[cand.effect],
-                                    before, fit.preds), given=tuple(selected))
+                info = candidates.infos[cand.effect]
+                acc = replace(judge(windows, channels, res.sigma, info,
+                                    fit.fitted[cand.effect], before, fit.preds,
+                                    torque_evidence(problem.joint_rows, info,
+                                                    fit.fitted[cand.effect])),
+                              given=tuple(selected))
                 acceptance.append(acc)
                 if acc.accepted:
                     chosen = (cand, fit)
