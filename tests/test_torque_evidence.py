@@ -125,3 +125,8 @@ def test_the_acceptance_refuses_a_term_the_torques_do_not_hold():
     refused = judge(*args, torque_evidence(noise, info, FRICTION))
     assert not refused.accepted and "do not hold its torque" in refused.reasons[-1]
     assert refused.to_dict()["torque"]["n_stances"] == 24
+    # diagnosis.json round trip; no key without a test
+    from granular_mpc.validation.diagnosis.acceptance_records import Acceptance
+
+    assert Acceptance.from_dict(refused.to_dict()).torque == refused.torque
+    assert "torque" not in judge(*args).to_dict()

@@ -247,6 +247,10 @@ def markdown(d: Diagnosis, figs: Sequence[Path]) -> str:
                            for c, x in a.credited_channels.items()) or "–"
             co = "; ".join(f"{k.text} ({k.status})" if k.status != "ok" else k.text
                            for k in a.coefficients) or "–"
+            if a.torque is not None:
+                lo, hi = a.torque.ci
+                co += (f"; joint torques hold {100 * a.torque.held_share:+.0f} % of its "
+                       f"{a.torque.rms_torque:.3g} N·m RMS [{100 * lo:+.0f}, {100 * hi:+.0f}] %")
             who = a.effect + (f" (given {', '.join(a.given)})" if a.given else "")
             added = "dropped" if a.dropped else ("yes" if a.accepted else "no")
             lines.append(f"| {who} | {added} | {ch} | {co} | "
