@@ -289,7 +289,8 @@ def _rejudge_case(truth, monkeypatch):
     fitted = {"force_sensor_bias": infos["force_sensor_bias"].resolve_params({"bias_z": 3.0}),
               "joint_friction": infos["joint_friction"].resolve_params({"coulomb": 0.1})}
     refits = _fake_refits(monkeypatch, pool, fitted)
-    problem = SimpleNamespace(windows=windows, channels=["q_left_knee", "grf_z"])
+    problem = SimpleNamespace(windows=windows, channels=["q_left_knee", "grf_z"],
+                              joint_rows=None)      # no joint torques: the rule does not apply
     res = SimpleNamespace(base=SimpleNamespace(theta={}),
                           sigma={"q_left_knee": 1e-3, "grf_z": 1.0})
     selected = ["force_sensor_bias", "joint_friction"]
@@ -372,7 +373,8 @@ def _exchange_case(knee, proxy, monkeypatch, bias_hurts_with=""):
         return y + 2.0 * len(sel), y
 
     monkeypatch.setattr(refine_module, "refined_aicc", rss)
-    problem = SimpleNamespace(windows=windows, channels=["q_left_knee", "grf_z"])
+    problem = SimpleNamespace(windows=windows, channels=["q_left_knee", "grf_z"],
+                              joint_rows=None)      # no joint torques: the rule does not apply
     res = SimpleNamespace(base=SimpleNamespace(theta={}),
                           sigma={"q_left_knee": 1e-3, "grf_z": 1.0})
     cands = SimpleNamespace(infos=infos, columns={n: () for n in infos})
