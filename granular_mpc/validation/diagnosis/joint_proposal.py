@@ -418,18 +418,20 @@ def equation_rows(dataset, biped: Biped, rate_hz: float) -> JointSamples | None:
                          torque_delay=hold_delay(dataset.meta.torque_hold_s))
 
 
-def propose_joint_terms(dataset, biped: Biped, rate_hz: float, *, seed: int = 0
+def propose_joint_terms(dataset, biped: Biped, rate_hz: float, *, seed: int = 0,
+                        rows: JointSamples | None = None
                         ) -> tuple[tuple[JointTerm, ...], tuple[JointFit, ...], str]:
     """The joint-axis proposal of a data set: (terms, per-joint fits, note).
 
     Nothing is proposed without the trunk pose and twist (``base_*``) or the joint torques.
+    ``rows``: the data set's :func:`equation_rows`, if the caller has them (None: computed).
     """
     missing = missing_groups(dataset)
     if missing:
         return (), (), ("joint proposal not available: the data set does not measure "
                         + ", ".join(missing) + " (RNEA needs the measured trunk motion)")
     hold = dataset.meta.torque_hold_s
-    s = equation_rows(dataset, biped, rate_hz)
+    s = rows if rows is not None else equation_rows(dataset, biped, rate_hz)
     terms, fits = fit_joint_terms(s, biped.joint_names, seed=seed)
     held = (f" The torques are commands held {1e3 * hold:g} ms (meta.yaml torque_hold_s): "
             f"τ(t − {1e3 * s.torque_delay:g} ms) acts at t." if hold else

@@ -108,7 +108,8 @@ def propose_terms(problem: Problem, theta: Mapping[str, float], *, seed: int = 0
     """
     p = _force_proposal(problem, theta, seed=seed)
     ds = dataset if dataset is not None else load_dataset(problem.data_dir)
-    jt, jf, jnote = propose_joint_terms(ds, problem.biped, problem.sample_rate_hz, seed=seed)
+    jt, jf, jnote = propose_joint_terms(ds, problem.biped, problem.sample_rate_hz, seed=seed,
+                                        rows=problem.joint_rows)
     return replace(p, joint_terms=jt, joint_fits=jf, joint_note=jnote)
 
 
