@@ -19,9 +19,9 @@ structure that flagged the missing effect must be explained (``docs/validation.m
   on the other side of the neutral value). Such a fit is reported with its flag and not
   added. Other parameters' flags are notes.
 * **Joint torques** (:mod:`.torque_evidence`): a joint term on data that measure the joint
-  torques and the trunk motion must be held by the joint-torque equation error — the
-  stance-grouped 95 % interval of the share of its torque the error holds lies above
-  :data:`.torque_evidence.MIN_HELD_SHARE` and reaches :data:`.torque_evidence.MIN_REACH`.
+  torques and the trunk motion must not be contradicted by the joint-torque equation error — the
+  stance-grouped 95 % interval of the share of its torque the error holds reaches
+  :data:`.torque_evidence.MIN_REACH`.
 * **Explained structure** (:func:`remaining_cells`): the major cells of the calibrated
   model's localisation that are still major (|t| ≥ T_CELL, |bias| ≥ MAJOR_BIAS σ and ≥
   the practical floor √(σ² + σ_meas²), :func:`.localise.practical_floor`) after the
