@@ -1,5 +1,5 @@
 """Whether the measured joint torques hold a joint term's torque (``docs/validation.md``
-§3.3, "The joint torques must hold a joint term").
+§3.3, "the joint torques must not contradict a joint term").
 
 The replays judge a joint term by the channels it moves, and a small joint torque moves
 the knees of an open-loop stance replay a lot: on null data whose sand differs from the
