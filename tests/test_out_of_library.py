@@ -225,19 +225,26 @@ def test_found_by_whom_and_detectable(ool):
     assert "| hard_layer_m1_s1 | hard_layer k=8000 N/m | 1, yes | -10 % | intrusion_z: +60 % / +70 % | user |" in ut
 
 
+def _absorbed_hard_layer(ool) -> dict:
+    """A hard layer whose truth cuts intrusion_z by 70 % against the model file (4 → 1.2
+    mm), 33 % against the library run's calibration (1.8 mm) and 25 % against the
+    feedback run's (1.6 mm), where the user's term takes it to 1.3 mm."""
+    hl = ool.Case("hard_layer_m1_s1", 1, "hard_layer", 8000.0)
+    return {"case": hl.__dict__,
+            "lib": _run("partially_explained", ["elastic_unloading"],
+                        {"intrusion_z": [0.0018, 0.0015]}),
+            "proposal": None,
+            "fb": _run("partially_explained", ["user_hard_layer"],
+                       {"intrusion_z": [0.0016, 0.0013]}),
+            "truth_replay": {"intrusion_z": [0.004, 0.0012]}}
+
+
 def test_detectable_against_the_calibrated_baseline(ool):
     """The truth's RMSE against the calibrated model's (the feedback run's 'before', else
     the library run's): a hard layer whose truth cuts intrusion_z by 70 % against the model
     file but only 25 % against a calibration that absorbed part of it is not detectable on
     that scale; with no run's baseline the model-file test stands in."""
-    hl = ool.Case("hard_layer_m1_s1", 1, "hard_layer", 8000.0)
-    row = {"case": hl.__dict__,
-           "lib": _run("partially_explained", ["elastic_unloading"],
-                       {"intrusion_z": [0.0018, 0.0015]}),
-           "proposal": None,
-           "fb": _run("partially_explained", ["user_hard_layer"],
-                      {"intrusion_z": [0.0016, 0.0013]}),
-           "truth_replay": {"intrusion_z": [0.004, 0.0012]}}
+    row = _absorbed_hard_layer(ool)
     s = ool.score(row)
     assert s["detectable"] is True and s["truth_red_cal"] == pytest.approx(0.25)
     assert s["detectable_calibrated"] is False
@@ -257,14 +264,7 @@ def test_found_against_the_model_file(ool):
     model file's (the truth replay's before). The hard layer above: −19 % against the
     calibrated model (not found), −68 % against the model file (found); a run that did
     not replay the channel, or a case without the truth's replay, is never found so."""
-    hl = ool.Case("hard_layer_m1_s1", 1, "hard_layer", 8000.0)
-    row = {"case": hl.__dict__,
-           "lib": _run("partially_explained", ["elastic_unloading"],
-                       {"intrusion_z": [0.0018, 0.0015]}),
-           "proposal": None,
-           "fb": _run("partially_explained", ["user_hard_layer"],
-                      {"intrusion_z": [0.0016, 0.0013]}),
-           "truth_replay": {"intrusion_z": [0.004, 0.0012]}}
+    row = _absorbed_hard_layer(ool)
     s = ool.score(row)
     assert not s["found"] and s["fb_red"] == pytest.approx(1 - 0.0013 / 0.0016)
     assert s["found_model_file"] and s["fb_red_file"] == pytest.approx(1 - 0.0013 / 0.004)
