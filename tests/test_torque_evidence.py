@@ -63,7 +63,7 @@ def test_a_term_the_torques_do_not_hold_is_refused():
     rows = _rows(lambda q, dq, rng: rng.normal(0, 0.1, q.shape))
     ev = torque_evidence(rows, effect_info("joint_friction"), FRICTION)
     assert abs(ev.held_share) < 0.05 and ev.ci[1] < MIN_REACH and not ev.holds
-    assert "do not hold its torque" in ev.text()
+    assert "hold less than 50 % of its torque" in ev.text()
     # a sliver of a large torque (a friction standing in for a sensor gain): the interval
     # lies above 0 but below one half
     big = {"coulomb": 0.8, "viscous": 0.1}
@@ -127,7 +127,7 @@ def test_the_acceptance_refuses_a_term_the_torques_do_not_hold():
     ok = judge(*args, torque_evidence(held, info, FRICTION))
     assert ok.accepted and ok.torque.holds
     refused = judge(*args, torque_evidence(noise, info, FRICTION))
-    assert not refused.accepted and "do not hold its torque" in refused.reasons[-1]
+    assert not refused.accepted and "hold less than 50 % of its torque" in refused.reasons[-1]
     assert refused.to_dict()["torque"]["n_stances"] == 24
     # diagnosis.json round trip; no key without a test
     from granular_mpc.validation.diagnosis.acceptance_records import Acceptance

@@ -139,8 +139,9 @@ def judge(windows, channels: Sequence[str], sigma: Mapping[str, float], info: Ef
         windows: the stance windows; channels: scored channels; sigma: channel → σ_c.
         info: the candidate; fitted: its refined parameters.
         before, after: per-window replay outputs without and with it.
-        torque: for a joint term, whether the measured joint torques hold its torque
-            (:func:`.torque_evidence.torque_evidence`; None: not tested).
+        torque: for a joint term, the share of its torque the measured joint torques
+            hold (:func:`.torque_evidence.torque_evidence`; None: not tested); refused when
+            it is significantly below :data:`.torque_evidence.MIN_REACH`.
     """
     credited = credited_channels(windows, channels, sigma, before, after)
     changes = {}

@@ -67,12 +67,11 @@ class TorqueEvidence(Record):
     def text(self) -> str:
         """The refusal in words."""
         lo, hi = self.ci
-        return (f"the measured joint torques do not hold its torque: on the swing-leg rows "
-                f"of the joint-torque equation error it adds {self.rms_torque:.3g} N·m RMS, "
-                f"of which the error holds {100 * self.held_share:+.0f} % (95 % CI "
-                f"{100 * lo:+.0f} … {100 * hi:+.0f} %; the torques hold a joint term of the "
-                f"robot, and the interval reaches {100 * self.min_reach:.0f} % for one, "
-                f"docs/validation.md §3.3)")
+        return (f"the measured joint torques hold less than {100 * self.min_reach:.0f} % of "
+                f"its torque: on the swing-leg rows of the joint-torque equation error it "
+                f"adds {self.rms_torque:.3g} N·m RMS, of which the error holds "
+                f"{100 * self.held_share:+.0f} % (95 % CI {100 * lo:+.0f} … {100 * hi:+.0f} "
+                f"%; a joint term of the robot is held there, docs/validation.md §3.3)")
 
 
 @dataclass(frozen=True)
@@ -93,7 +92,7 @@ class Acceptance(Record):
         dropped: it had been added, and was dropped when judged again against the final
             model (``given``: the others).
         torque: for a joint term on data that measure the joint torques and the trunk
-            motion, whether the torques hold its torque (None: not tested).
+            motion, the share of its torque they hold (None: not tested).
     """
 
     effect: str
