@@ -106,19 +106,29 @@ class Acceptance(Record):
     torque: TorqueEvidence | None = field(default=None, metadata=OMIT_NONE)
 
 
+#: the contact regime's terrain-file parameters in words (:meth:`StrengthTwin.sentence`)
+CONTACT_WORDS = {"contact_damping": "elastic-regime contact damping",
+                 "added_mass_scale": "added mass of the solidified wedge"}
+
+
 @dataclass(frozen=True)
 class StrengthTwin(Record):
-    """A candidate whose evidence a terrain-strength mismatch explains as well.
+    """A candidate whose evidence a mismatch of the terrain file's own parameters — the
+    strength φ_s or the contact regime (damping, added mass) — explains as well.
 
     Attributes:
         effect: the candidate.
         heldout_error_reduction: its held-out error reduction against the model.
-        given_strength_heldout_error_reduction: the same with φ_s free in the model.
-        given_strength_delta_aicc: its ΔAICc against the model with φ_s free.
-        strength_heldout_error_reduction: what φ_s free alone removes.
-        strength_values: the terrain-strength parameters the linear fit asks for, in
-            readable units (``phi_s_deg`` [deg]).
+        given_strength_heldout_error_reduction: the same with the terrain-file
+            parameters free in the model.
+        given_strength_delta_aicc: its ΔAICc against the model with them free.
+        strength_heldout_error_reduction: what they alone remove.
+        strength_values: the values the linear fit asks for, in readable units
+            (``phi_s_deg`` [deg], ``contact_damping`` [N·s/m], ``added_mass_scale`` [-]).
         file_values: the same in the terrain file.
+        parameter: the one the fit moves furthest from the file, in steps of its column
+            (``phi_s_deg``, ``contact_damping``, ``added_mass_scale``): the reading the
+            sentence gives.
     """
 
     effect: str
@@ -128,39 +138,63 @@ class StrengthTwin(Record):
     strength_heldout_error_reduction: float
     strength_values: Mapping[str, float]
     file_values: Mapping[str, float]
+    parameter: str = "phi_s_deg"
 
     def sentence(self) -> str:
         """The twin in words (signed changes of the held-out error: −26 % is a reduction).
 
-        The data cannot tell a sand of another strength from a missing effect that
-        strengthens (or weakens) the sand as a different φ_s does, so the sentence gives
-        both readings and how to decide: measure φ_s independently.
+        The data cannot tell a sand of another strength (contact regime) from a missing
+        effect that acts on the sole as a different φ_s (damping, added mass) does, so the
+        sentence gives both readings and how to decide: measure the parameter
+        independently.
         """
-        fitted = ", ".join(f"{k} ≈ {v:.1f}" for k, v in self.strength_values.items())
-        filed = ", ".join(f"{v:.1f}" for v in self.file_values.values())
-        values = f" ({fitted}; terrain file {filed})" if fitted else ""
+        free = " and ".join({"phi_s_deg": "φ_s", "contact_damping": "the contact damping",
+                             "added_mass_scale": "the added mass"}.get(k, k)
+                            for k in self.file_values) or "φ_s"
+        evidence = (f"{free} free {'changes' if free == 'φ_s' else 'change'} the held-out error by "
+                    f"{_signed(self.strength_heldout_error_reduction)}, {self.effect} alone by "
+                    f"{_signed(self.heldout_error_reduction)}, {self.effect} beside "
+                    f"{'φ_s' if free == 'φ_s' else 'them'} by "
+                    f"{_signed(self.given_strength_heldout_error_reduction)} (ΔAICc "
+                    f"{self.given_strength_delta_aicc:.0f}). The data cannot tell which of two "
+                    "readings holds: EITHER ")
+        if self.parameter in CONTACT_WORDS:
+            what = CONTACT_WORDS[self.parameter]
+            keys = [self.parameter] + [k for k in self.strength_values if k != self.parameter]
+            return (f"{self.effect} is indistinguishable from a contact-regime mismatch: "
+                    + evidence + f"the sand's {what} differs from the terrain file's"
+                    f"{self._values(*keys)} — check it independently (a drop or "
+                    "load–unload test of the sole) and correct the terrain file only if that "
+                    f"confirms it — OR a missing effect acts on the sole as a different {what} "
+                    f"does ({self.effect} is one such proxy)")
         sign = self._direction()
         sand = {1: "stronger than", -1: "weaker than"}.get(sign, "of another strength than")
         verb = {1: "strengthens", -1: "weakens"}.get(sign, "strengthens or weakens")
         phi = {1: "a higher", -1: "a lower"}.get(sign, "another")
-        return (f"{self.effect} is indistinguishable from a terrain-strength mismatch: φ_s "
-                f"free changes the held-out error by "
-                f"{_signed(self.strength_heldout_error_reduction)}, {self.effect} alone by "
-                f"{_signed(self.heldout_error_reduction)}, {self.effect} beside φ_s by "
-                f"{_signed(self.given_strength_heldout_error_reduction)} (ΔAICc "
-                f"{self.given_strength_delta_aicc:.0f}). The data cannot tell which of two "
-                f"readings holds: EITHER the sand is {sand} the terrain file says{values} — "
-                "check φ_s independently (a penetration test, or a calibration on other "
-                "data) and correct the terrain file only if that confirms it — OR a missing "
-                f"effect {verb} the sand the same way {phi} φ_s does ({self.effect} is one "
-                "such proxy)")
+        return (f"{self.effect} is indistinguishable from a terrain-strength mismatch: "
+                + evidence + f"the sand is {sand} the terrain file says"
+                f"{self._values('phi_s_deg')} — check φ_s independently (a penetration test, "
+                "or a calibration on other data) and correct the terrain file only if that "
+                f"confirms it — OR a missing effect {verb} the sand the same way {phi} φ_s "
+                f"does ({self.effect} is one such proxy)")
+
+    def _values(self, *keys: str) -> str:
+        """`` (phi_s_deg ≈ 33.4; terrain file 38.0)`` for ``keys`` (the fitted ones; ''
+        when none is). Several: ``(contact_damping ≈ 290.0, added_mass_scale ≈ 1.1;
+        terrain file 100.0, 1.0)`` — a group's parameters trade off against each other,
+        so the reading gives them all, the one the fit moves furthest first."""
+        keys = [k for k in keys if k in self.strength_values and k in self.file_values]
+        if not keys:
+            return ""
+        fitted = ", ".join(f"{k} ≈ {self.strength_values[k]:.1f}" for k in keys)
+        filed = ", ".join(f"{self.file_values[k]:.1f}" for k in keys)
+        return f" ({fitted}; terrain file {filed})"
 
     def _direction(self) -> int:
         """+1 / −1 when the fitted φ_s is above / below the file's, 0 if unknown or equal."""
-        key = next((k for k in self.strength_values if k in self.file_values), None)
-        if key is None:
+        if "phi_s_deg" not in self.strength_values or "phi_s_deg" not in self.file_values:
             return 0
-        diff = self.strength_values[key] - self.file_values[key]
+        diff = self.strength_values["phi_s_deg"] - self.file_values["phi_s_deg"]
         return int(diff > 0) - int(diff < 0)
 
 

@@ -18,8 +18,13 @@ ZETA_REL_STEP = 0.08
 PHI_S_STEP_RAD = math.radians(3.0)
 TOUCHDOWN_DEPTH_STEP_M = 5e-4
 TOUCHDOWN_DEPTH_BOUNDS_M = (-1e-3, 2e-3)
-#: the candidate name of the terrain-strength columns (keys ``strength.<param>``)
+#: the candidate name of the terrain-file columns tested against (keys ``strength.<param>``)
 STRENGTH = "strength"
+#: the contact regime's terrain-file parameters tested against (:func:`strength_columns`):
+#: relative finite-difference step, upper bound as a multiple of the file's value, unit
+CONTACT_PARAMS = {"contact_damping": (0.5, 10.0, "N·s/m"), "added_mass_scale": (0.5, 5.0, "-")}
+#: the value the step and bound scale with when the file's value is zero
+CONTACT_FLOOR = {"contact_damping": 100.0, "added_mass_scale": 1.0}
 
 
 def nuisance_columns(theta: Mapping[str, float]) -> tuple[Column, ...]:
@@ -38,15 +43,26 @@ def nuisance_columns(theta: Mapping[str, float]) -> tuple[Column, ...]:
     return tuple(cols)
 
 
-def strength_columns(theta: Mapping[str, float], phi_s_rad: float) -> tuple[Column, ...]:
-    """The terrain strength's column when the calibration keeps φ_s fixed: φ_s [rad] at the
-    terrain file's value ``phi_s_rad``. Not a nuisance column of the regressions: the
-    screening uses it only to ask whether a candidate is a φ_s mismatch in disguise
-    (:mod:`.strength`). Empty when φ_s is calibrated (then it is a nuisance column)."""
-    if "phi_s" in theta:
-        return ()
-    plo, phi = CAL_PARAMS["phi_s"]
-    return (Column(STRENGTH, "phi_s", phi_s_rad, PHI_S_STEP_RAD, plo, phi, "rad"),)
+def strength_columns(theta: Mapping[str, float], phi_s_rad: float,
+                     contact: Mapping[str, float] | None = None) -> tuple[Column, ...]:
+    """The terrain-file parameters a candidate is tested against, not fitted
+    (:mod:`.strength`): φ_s [rad] at the terrain file's value ``phi_s_rad`` when the
+    calibration keeps it fixed (when φ_s is calibrated it is a nuisance column instead),
+    and the contact regime ``contact`` (:data:`CONTACT_PARAMS` → the file's values:
+    ``contact_damping`` [N·s/m], ``added_mass_scale`` [-]).
+
+    The contact regime's columns answer the nulls of ``docs/validation.md`` §5.3.18: a
+    plant whose elastic-regime damping is 3× the file's pulls on the rising sole the way
+    ``cohesion`` does, and one whose added mass is 2× pushes as ``inertial_drag`` does."""
+    cols = []
+    if "phi_s" not in theta:
+        plo, phi = CAL_PARAMS["phi_s"]
+        cols.append(Column(STRENGTH, "phi_s", phi_s_rad, PHI_S_STEP_RAD, plo, phi, "rad"))
+    for param, value in (contact or {}).items():
+        rel_step, upper, unit = CONTACT_PARAMS[param]
+        scale = max(value, CONTACT_FLOOR[param])
+        cols.append(Column(STRENGTH, param, value, rel_step * scale, 0.0, upper * scale, unit))
+    return tuple(cols)
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,8 +75,8 @@ class CalibrationStage:
         theta: the calibrated θ plus ``touchdown_depth = 0`` [m].
         nuisance: the calibration's columns at ``theta``.
         replay_model: the model with every terrain-force candidate compiled in (neutral).
-        strength: the terrain strength's columns when φ_s is not calibrated
-            (:func:`strength_columns`; not fitted, only tested against).
+        strength: the terrain-file columns tested against, not fitted: φ_s when it is
+            not calibrated, and the contact regime (:func:`strength_columns`).
     """
 
     calibration: Calibration
@@ -90,9 +106,11 @@ def calibrate_model(problem: Problem, candidates: CandidateSet, *,
                             terrain_effects=candidates.terrain_force_names)
     theta = dict(cal.values)
     theta["touchdown_depth"] = 0.0
+    cfg = problem.terrain_cfg
+    contact = {p: float(getattr(cfg, p)) for p in CONTACT_PARAMS if hasattr(cfg, p)}
     return CalibrationStage(cal, cal_free, theta, nuisance_columns(theta), rm,
-                            strength_columns(theta, math.radians(problem.terrain_cfg.phi_s_deg)))
+                            strength_columns(theta, math.radians(cfg.phi_s_deg), contact))
 
 
 __all__ = ["CalibrationStage", "calibrate_model", "nuisance_columns", "strength_columns",
-           "STRENGTH"]
+           "STRENGTH", "CONTACT_PARAMS", "CONTACT_FLOOR"]

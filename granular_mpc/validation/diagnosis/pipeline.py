@@ -40,7 +40,7 @@ from .residuals import compute_residuals, replay_rmse
 from .result import (CalibrationReport, Diagnosis, DesignSummary, LocalizationReport,
                      NEffFactor, Recommended)
 from .screen import screen, screening_design
-from .strength import add_strength_sensitivity, not_twins, strength_model, twin_suspects
+from .strength import add_strength_sensitivity, not_twins, strength_models, twin_suspects
 from .untested import with_untested
 from .verdict import VerdictInputs, best_candidate_statement, decide
 
@@ -142,7 +142,7 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
     with ReplayPool(cal.replay_model, problem.windows, workers=workers) as pool:
         t0 = _time.perf_counter()
         res = compute_residuals(problem, cands, cal, pool)
-        res = add_strength_sensitivity(problem, cal, res, pool)     # φ_s: tested against
+        res = add_strength_sensitivity(problem, cal, res, pool)     # φ_s, contact: tested against
         computed = cands
         cands, warns = drop_dead_candidates(cands, res.sens, problem.channels)
         cands, diverged = drop_diverged_candidates(cands, res.sens, res.R)
@@ -156,14 +156,12 @@ def diagnose(data_dir: str | Path, out_dir: str | Path | None = None, *,
         t0 = _time.perf_counter()
         sd = screening_design(problem, cands, cal.nuisance, res, seed=seed,
                               strength=cal.strength)
-        # φ_s refined by replays, the candidates that could pass replayed there: tested
-        # against (strength.py)
+        # the terrain file's φ_s and contact regime refined by replays, group by group, the
+        # candidates that could pass replayed there: tested against (strength.py)
         suspects = twin_suspects(sd.regression, sd.base_keys, cands.keys)
         if suspects:
-            strength = strength_model(problem, cands.without(
-                [n for n in cands.keys if n not in suspects]), cal, res, pool, seed=seed)
-            if strength is not None:
-                sd = replace(sd, strength_model=strength)
+            sd = replace(sd, strength_models=strength_models(problem, cands.without(
+                [n for n in cands.keys if n not in suspects]), cal, res, pool, seed=seed))
         timing["design"] = _time.perf_counter() - t0
         t0 = _time.perf_counter()
         scr = screen(problem, cands, sd, n_boot=n_boot, seed=seed, max_effects=max_effects,

@@ -21,7 +21,7 @@ from .regression import (Regression, RegressionBuilder, Regressions, fit_bounded
                          forward_selection)
 from .residuals import Residuals
 from .result import ChannelChange, IndistinguishablePair
-from .strength import StrengthModel, StrengthTwin, strength_twin
+from .strength import StrengthModel, StrengthTwin, first_twin
 from .thresholds import (FEATURE_EXPERIMENTS, LARGE_HELDOUT_REDUCTION, MAX_DELTA_AICC,
                          MIN_EFFECT_SIZE, MIN_HELDOUT_REDUCTION, MIN_INCLUSION,
                          MIN_STANCE_REDUCTION)
@@ -54,15 +54,15 @@ def candidate_stats(reg: Regression, base_keys: Sequence[str],
                     cand_keys: Mapping[str, list[str]],
                     cand_cols: Mapping[str, Sequence[Column]], infos: Mapping, *, n_boot: int,
                     seed: int, max_effects: int,
-                    strength_model: StrengthModel | None = None,
+                    strength_models: Sequence[StrengthModel] = (),
                     not_twins: Collection[str] = ()) -> list[CandidateStats]:
     """Statistics of every candidate in ``cand_keys`` against the model ``base_keys``:
     held-out error reduction (systematic rows; stance rows under the same fit), ΔAICc,
     bootstrap inclusion probability, fitted parameters with intervals, significance.
-    Sorted by held-out error reduction (``rank`` 1 first). ``strength_model``: the model
-    replayed at the terrain strength the data ask for (:func:`.strength.strength_model`),
-    against which a candidate that passes is tested again (None: the strength columns of
-    ``reg``, if any)."""
+    Sorted by held-out error reduction (``rank`` 1 first). ``strength_models``: the model
+    replayed at the terrain-file parameters the data ask for, per tested group
+    (:func:`.strength.strength_models`), against which a candidate that passes is tested
+    again (a group without one: the group's columns of ``reg``, if any)."""
     base_keys = list(base_keys)
     cv0 = reg.cv(base_keys)
     a0 = reg.aicc(base_keys)
@@ -95,9 +95,9 @@ def candidate_stats(reg: Regression, base_keys: Sequence[str],
     # a candidate that a terrain-strength mismatch explains as well is not significant
     # (strength.py; only when the regression has the strength columns)
     for r in rows:
-        if r["effect"] not in not_twins and passes_but_inclusion(r) and strength_twin(
+        if r["effect"] not in not_twins and passes_but_inclusion(r) and first_twin(
                 reg, base_keys, r["effect"], cand_keys[r["effect"]],
-                r["heldout_error_reduction"], {}, strength_model) is not None:
+                r["heldout_error_reduction"], {}, strength_models) is not None:
             r["strength_twin"] = True
     # bootstrap inclusion probability: forward selection by AICc on resamples of trials
     rng = np.random.default_rng(seed)
@@ -106,10 +106,15 @@ def candidate_stats(reg: Regression, base_keys: Sequence[str],
     counts = {n: 0 for n in cand_keys}
     boot_params: dict[str, list] = {n: [] for n in cand_keys}
     B = int(n_boot) if gs.size >= 2 else 0
+    # a twin does not vote: the terrain file's parameters explain its evidence, so the
+    # selections it would take go to the candidates that remain (a plant's soft bed, the
+    # user's term, got 50 % of them beside twins and was never refined)
+    twins = {r["effect"] for r in rows if r.get("strength_twin")}
+    voters = {n: k for n, k in cand_keys.items() if n not in twins}
     for _ in range(B):
         pick = rng.choice(gs, gs.size, replace=True)
         rws = np.concatenate([members[g] for g in pick])
-        for n in forward_selection(reg, cand_keys, base_keys, rws, max_terms=max_effects):
+        for n in forward_selection(reg, voters, base_keys, rws, max_terms=max_effects):
             counts[n] += 1
         for n, keys in cand_keys.items():
             beta, _ = reg.fit(base_keys + keys, rws)
@@ -319,9 +324,10 @@ class ScreeningDesign:
         base_keys: the nuisance column keys.
         strength: the terrain-strength columns in the regressions (not in ``base_keys``:
             only tested against, :mod:`.strength`).
-        strength_model: the model replayed at the strength the data ask for, the
-            candidates replayed there (:func:`.strength.strength_model`; None: the data
-            ask for the file's strength, or it was not computed).
+        strength_models: the model replayed at the terrain-file parameters the data ask
+            for, the candidates replayed there, one per tested group that moved
+            (:func:`.strength.strength_models`; empty: the data ask for the file's
+            values, or they were not computed).
     """
 
     builder: RegressionBuilder
@@ -329,7 +335,7 @@ class ScreeningDesign:
     bounds: Mapping[str, tuple[float, float]]
     base_keys: tuple[str, ...]
     strength: tuple[Column, ...] = ()
-    strength_model: StrengthModel | None = None
+    strength_models: tuple[StrengthModel, ...] = ()
 
     @property
     def regression(self) -> Regression:
@@ -356,11 +362,11 @@ class Screening(ScreeningDesign):
 
 def screening_design(problem: Problem, candidates: CandidateSet, nuisance: Sequence[Column],
                      res: Residuals, *, seed: int, strength: Sequence[Column] = (),
-                     strength_model: StrengthModel | None = None) -> ScreeningDesign:
+                     strength_models: Sequence[StrengthModel] = ()) -> ScreeningDesign:
     """The regressions on the calibrated residual with every column (bounds = the
     parameters' physical ranges around their neutral values); ``strength``: the
     terrain-strength columns (their sensitivities in ``res.sens``), tested against only;
-    ``strength_model``: the model at the strength the data ask for (tested against)."""
+    ``strength_models``: the models at the values the data ask for (tested against)."""
     strength = tuple(c for c in strength if c.key in res.sens)
     bounds = {c.key: c.bounds for c in tuple(nuisance) + strength}
     for cols in candidates.columns.values():
@@ -370,7 +376,8 @@ def screening_design(problem: Problem, candidates: CandidateSet, nuisance: Seque
     group_unit = "trial" if problem.n_trials >= 3 else "stance"
     builder = RegressionBuilder(problem.windows, problem.channels, res.sigma, group_unit, seed)
     regs = builder.build(res.R, res.sens, res.geometry, bounds, base_keys)
-    return ScreeningDesign(builder, regs, bounds, tuple(base_keys), strength, strength_model)
+    return ScreeningDesign(builder, regs, bounds, tuple(base_keys), strength,
+                           tuple(strength_models))
 
 
 def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, *,
@@ -384,7 +391,7 @@ def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, 
     cand_keys = candidates.keys
     ranking = candidate_stats(reg, base_keys, cand_keys, candidates.columns, candidates.infos,
                               n_boot=n_boot, seed=seed, max_effects=max_effects,
-                              strength_model=design.strength_model, not_twins=not_twins)
+                              strength_models=design.strength_models, not_twins=not_twins)
     pairs = indistinguishable(reg, base_keys, cand_keys, ranking, problem.windows,
                               candidates.infos,
                               Regression(design.regressions.stance, design.bounds, base_keys,
@@ -396,8 +403,9 @@ def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, 
                      delta_aicc=r.delta_aicc, effect_size=r.effect_size,
                      heldout_error_reduction_stance=r.heldout_error_reduction_stance)
         if neutral and r.effect not in not_twins and passes_but_inclusion(stats):
-            tw = strength_twin(reg, base_keys, r.effect, cand_keys[r.effect],
-                               r.heldout_error_reduction, neutral, design.strength_model)
+            tw = first_twin(reg, base_keys, r.effect, cand_keys[r.effect],
+                            r.heldout_error_reduction, neutral, design.strength_models,
+                            {c.key: c.step for c in design.strength})
             if tw is not None:
                 twins.append(tw)
     # a twin must not come back as a leader's indistinguishable partner (refine refines
@@ -405,7 +413,7 @@ def screen(problem: Problem, candidates: CandidateSet, design: ScreeningDesign, 
     gone = {t.effect for t in twins}
     pairs = [p for p in pairs if not gone & set(p.effects)]
     return Screening(design.builder, design.regressions, design.bounds, design.base_keys,
-                     design.strength, design.strength_model, ranking=tuple(ranking),
+                     design.strength, design.strength_models, ranking=tuple(ranking),
                      indistinguishable=tuple(pairs), strength_twins=tuple(twins),
                      not_twins=tuple(sorted(set(not_twins) & set(cand_keys))))
 

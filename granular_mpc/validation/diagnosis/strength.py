@@ -1,5 +1,11 @@
-"""A terrain-strength mismatch in disguise: is a candidate only a φ_s that differs from the
-terrain file? (``docs/validation.md`` §3.3)
+"""A terrain-file mismatch in disguise: is a candidate only a φ_s — or a contact damping or
+added mass — that differs from the terrain file? (``docs/validation.md`` §3.3)
+
+The parameters are tested in groups (:data:`TESTED_GROUPS`): the strength φ_s, then the
+contact regime (the elastic-regime damping and the added mass of the solidified wedge,
+:data:`.calibration.CONTACT_PARAMS`), each refined and tested on its own. Everything below
+says φ_s; the contact regime is handled the same way (a plant damping 3× the file's pulls
+on a rising sole like ``cohesion``, an added mass 2× pushes like ``inertial_drag``).
 
 The calibration keeps φ_s at the terrain file's value by default (left free in the
 equation error it trades off against depth-dependent effects, §3.1). A plant whose sand
@@ -37,8 +43,10 @@ candidate replayed there; ``docs/validation.md`` §3.7).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Mapping, Sequence
+
+import numpy as np
 
 from ..replay.pool import ReplayPool
 from .acceptance_records import StrengthTwin
@@ -52,6 +60,17 @@ from .residuals import Residuals, compute_residuals, guard_jumps
 from .thresholds import MAX_DELTA_AICC, MIN_HELDOUT_REDUCTION
 
 
+#: the tested terrain-file parameters, refined and tested against group by group
+#: (:func:`strength_models`, :func:`first_twin`): the strength, then the contact regime.
+#: Refined together, the contact regime took over a φ_s mismatch (35° against the file's
+#: 38°: φ_s went to 37.2°, the damping to 1.8×, the added mass to 0.5×) and a depth law
+#: passed beside them (issue 11, seed 109)
+TESTED_GROUPS = (("phi_s",), ("contact_damping", "added_mass_scale"))
+#: a twin's parameters must remove at least this share of what the candidate removes alone
+#: (held-out error; and at least the screening's 2 %): a user's sole friction removing 62 %
+#: alone failed beside an added mass of 4.8× that removed 22 % (issue 11, seed 1) — the
+#: parameters did not explain its evidence, the refined model only spoiled its column
+TWIN_SHARE = 0.5
 #: at most this many Gauss–Newton steps of the strength by replays (:func:`strength_model`)
 STRENGTH_ITERATIONS = 4
 #: … stopped when a step moves the strength by less than this share of the column's
@@ -80,25 +99,36 @@ def add_strength_sensitivity(problem: Problem, cal: CalibrationStage, res: Resid
 
 @dataclass(frozen=True, eq=False)
 class StrengthModel:
-    """The calibrated model replayed at the terrain strength the data ask for.
+    """The calibrated model replayed at the terrain-file parameters the data ask for.
 
     Attributes:
-        key: the strength column (``strength.<param>``).
-        path: the strength values of the Gauss–Newton steps, the terrain file's first
-            [the parameter's unit; φ_s: rad].
-        regression: every candidate column (recomputed by replays at ``path[-1]``) and
-            the strength column (the derivative at ``path[-1]``) on the residual of the
-            model replayed there; the nuisance columns as in the screening.
+        key: the first tested column (``strength.phi_s`` when φ_s is not calibrated).
+        path: its values along the Gauss–Newton steps, the terrain file's first [the
+            parameter's unit; φ_s: rad].
+        regression: every candidate column (recomputed by replays at the refined
+            values) and the tested columns (the derivatives there) on the residual of
+            the model replayed there; the nuisance columns as in the screening.
+        values: every tested column's refined value (key → value; ``key``'s is
+            ``path[-1]``). Empty: only ``key`` was refined.
+        at_bound: the tested columns whose refinement ended at a bound of their range:
+            the data ask for a value the parameter cannot take (:func:`strength_twin`
+            then reads no twin).
     """
 
     key: str
     path: tuple[float, ...]
     regression: Regression
+    values: Mapping[str, float] = field(default_factory=dict)
+    at_bound: tuple[str, ...] = ()
 
     @property
     def value(self) -> float:
         """The strength the data ask for (the last step)."""
         return self.path[-1]
+
+    def value_of(self, key: str, default: float) -> float:
+        """The refined value of column ``key`` (``default``: not refined)."""
+        return self.value if key == self.key else float(self.values.get(key, default))
 
 
 def _builder(problem: Problem, res: Residuals, seed: int) -> RegressionBuilder:
@@ -108,63 +138,85 @@ def _builder(problem: Problem, res: Residuals, seed: int) -> RegressionBuilder:
 
 def strength_model(problem: Problem, candidates: CandidateSet, cal: CalibrationStage,
                    res: Residuals, pool: ReplayPool, *, seed: int = 0,
-                   iterations: int = STRENGTH_ITERATIONS) -> StrengthModel | None:
-    """Refine the terrain strength by replays, then replay every candidate there.
+                   iterations: int = STRENGTH_ITERATIONS,
+                   params: Sequence[str] | None = None) -> StrengthModel | None:
+    """Refine the tested terrain-file parameters ``params`` (None: all of ``cal``'s) by
+    replays, then replay every candidate there.
 
     A plant whose φ_s is 5° below the terrain file's is far outside the range where the
     replay responds linearly to φ_s (the bearing capacity grows about exponentially with
     it): the derivative one step above the file's value, fitted beside the nuisance
     columns, asks for 34.3° where the plant has 33°, and a depth-dependent candidate then
     still removes 14 % of the held-out error beside it (issue 11, the φ_s = 33° null at
-    seed 101); replayed at 33°, the same candidate removes nothing. So the strength is
-    refined like an added effect, together with the calibrated ζ that trades off against
-    it: Gauss–Newton steps, each fitting the derivatives at the current (ζ, strength)
-    beside the touchdown-depth column on the residual replayed there (three replays of
-    the calibrated model per step), until a step of the strength is below
-    :data:`STRENGTH_TOLERANCE` of the column's step or after ``iterations`` steps. The
-    candidates are then replayed at that strength (:func:`.residuals.compute_residuals`),
-    so that :func:`strength_twin` compares each with the model the data ask for.
+    seed 101); replayed at 33°, the same candidate removes nothing. So the tested
+    parameters (one group of :data:`TESTED_GROUPS`, :func:`.calibration.strength_columns`)
+    are refined like an added effect, together with the calibrated ζ that trades off
+    against them: Gauss–Newton steps, each fitting the derivatives at the current values
+    beside the touchdown-depth column on the residual replayed there, until every step
+    is below :data:`STRENGTH_TOLERANCE` of its column's step or after ``iterations``
+    steps. A step that leaves a larger residual than the point it left is not taken. The
+    candidates are then replayed there (:func:`.residuals.compute_residuals`), so that
+    :func:`strength_twin` compares each with the model the data ask for.
 
-    Returns None when ``cal`` has no strength column or the data ask for the file's value
-    (the first step is below the tolerance): the screening's own regression then serves.
+    Returns None when ``cal`` has none of ``params`` or the data ask for the file's values
+    (the first step is below the tolerance, or does not lower the residual): the
+    screening's own regression then serves.
     """
-    if not cal.strength:
+    tested = tuple(c for c in cal.strength if params is None or c.param in params)
+    if not tested:
         return None
-    col = cal.strength[0]
+    primary = next((c for c in tested if c.param == "phi_s"), tested[0])
+    own = {c.param for c in tested}
     windows, channels, edges = problem.windows, problem.channels, problem.edges
     gkeys = group_keys(windows)
     base_keys = list(cal.nuisance_keys)
+    test_keys = [c.key for c in tested]
     builder = _builder(problem, res, seed)
-    # the model's own parameters that move with the strength: ζ (and any calibrated
+    # the model's own parameters that move with the tested ones: ζ (and any calibrated
     # one), re-linearised at every step; the touchdown depth stays a linear column
-    moving = {c.param for c in cal.nuisance if c.param in cal.calibration.values}
-    moving.add(col.param)
+    moving = {c.param for c in cal.nuisance if c.param in cal.calibration.values} | own
     theta = dict(cal.theta)
-    theta[col.param] = col.neutral
-    R, sens = res.R, {k: res.sens[k] for k in base_keys + [col.key]}
-    path = [col.neutral]
+    theta.update({c.param: c.neutral for c in tested})
+    R, sens = res.R, {k: res.sens[k] for k in base_keys + test_keys}
+    path = [primary.neutral]
 
     def columns(th):
-        fixed = {k: v for k, v in th.items() if k != col.param}
-        return nuisance_columns(fixed) + (replace(col, neutral=th[col.param]),)
+        fixed = {k: v for k, v in th.items() if k not in own}
+        return nuisance_columns(fixed) + tuple(replace(c, neutral=th[c.param]) for c in tested)
 
-    last_step = 0.0
-    for _ in range(iterations):
+    def mean_square(reg: Regression) -> float:
+        return reg.fit(base_keys)[1] / max(reg.matrix(base_keys)[0].shape[0], 1)
+
+    last, taken, cost = None, dict(theta), math.inf
+    for _ in range(iterations + 1):
         cols = columns(theta)
         bounds = {c.key: c.bounds for c in cols}
-        beta, _ = builder.build(R, sens, res.geometry, bounds,
-                                base_keys).regression.fit(base_keys + [col.key])
-        step = dict(zip(base_keys + [col.key], (float(b) for b in beta)))
-        if abs(step[col.key]) <= STRENGTH_TOLERANCE * col.step:
+        reg = builder.build(R, sens, res.geometry, bounds, base_keys).regression
+        # a step that leaves a larger residual (mean square of the nuisance fit) than
+        # the point it left is not taken: the linearisation failed there (an inertial
+        # drag of c_d = 4 asked for an added mass 4.9× the file's, whose replays miss
+        # the data by far more than the file's)
+        here = mean_square(reg)
+        if here > cost:
+            theta = taken
+            path.pop()
             break
-        # a step back across the previous iterate brackets the strength the data ask
-        # for: take the middle of the bracket and stop (the steps would oscillate)
-        reverse = step[col.key] * last_step < 0.0
-        last_step = step[col.key]
+        taken, cost = dict(theta), here
+        if len(path) > iterations:
+            break
+        beta, _ = reg.fit(base_keys + test_keys)
+        step = dict(zip(base_keys + test_keys, (float(b) for b in beta)))
+        scaled = np.array([step[c.key] / c.step for c in tested])
+        if float(np.max(np.abs(scaled))) <= STRENGTH_TOLERANCE:
+            break
+        # a step back across the previous iterate brackets the values the data ask for:
+        # take the middle of the bracket and stop (the steps would oscillate)
+        reverse = last is not None and float(scaled @ last) < 0.0
+        last = scaled
         for c in [c for c in cols if c.param in moving]:
             theta[c.param] = min(max(c.neutral + (0.5 if reverse else 1.0) * step[c.key],
                                      c.lower), c.upper)
-        path.append(theta[col.param])
+        path.append(theta[primary.param])
         if reverse:
             break
         at = res.base.with_theta(**theta)
@@ -181,9 +233,9 @@ def strength_model(problem: Problem, candidates: CandidateSet, cal: CalibrationS
                                               - P) / c.step, gkeys)
     if len(path) == 1:
         return None
-    fixed = {k: v for k, v in theta.items() if k != col.param}
-    at = replace(cal, theta=theta, nuisance=nuisance_columns(fixed),
-                 strength=(replace(col, neutral=theta[col.param]),))
+    fixed = {k: v for k, v in theta.items() if k not in own}
+    refined = tuple(replace(c, neutral=theta[c.param]) for c in tested)
+    at = replace(cal, theta=theta, nuisance=nuisance_columns(fixed), strength=refined)
     res_at = add_strength_sensitivity(problem, at, compute_residuals(problem, candidates, at,
                                                                      pool), pool)
     bounds = {c.key: c.bounds for c in at.nuisance + at.strength}
@@ -193,7 +245,39 @@ def strength_model(problem: Problem, candidates: CandidateSet, cal: CalibrationS
     bounds.update({c.key: c.bounds for cols in keep.columns.values() for c in cols})
     sens = {k: v for k, v in res_at.sens.items() if k in bounds}
     reg = builder.build(res_at.R, sens, res_at.geometry, bounds, base_keys).regression
-    return StrengthModel(col.key, tuple(path), reg)
+    at_bound = tuple(c.key for c in refined if c.neutral <= c.lower or c.neutral >= c.upper)
+    return StrengthModel(primary.key, tuple(path), reg,
+                         {c.key: c.neutral for c in refined if c.key != primary.key}, at_bound)
+
+
+def strength_models(problem: Problem, candidates: CandidateSet, cal: CalibrationStage,
+                    res: Residuals, pool: ReplayPool, *, seed: int = 0
+                    ) -> tuple[StrengthModel, ...]:
+    """One :func:`strength_model` per group of :data:`TESTED_GROUPS` that ``cal`` tests and
+    the data move from the terrain file's values."""
+    out = []
+    for group in TESTED_GROUPS:
+        m = strength_model(problem, candidates, cal, res, pool, seed=seed, params=group)
+        if m is not None:
+            out.append(m)
+    return tuple(out)
+
+
+def first_twin(reg: Regression, base_keys: Sequence[str], effect: str, keys: Sequence[str],
+               heldout_error_reduction: float, neutral: Mapping[str, float],
+               models: Sequence[StrengthModel] = (),
+               steps: Mapping[str, float] | None = None) -> StrengthTwin | None:
+    """:func:`strength_twin` for each group of :data:`TESTED_GROUPS` in turn (the group's
+    refined model from ``models`` if there is one, else the linear test on ``reg``): the
+    first twin, or None."""
+    for group in TESTED_GROUPS:
+        tested = [f"{STRENGTH}.{p}" for p in group]
+        model = next((m for m in models if m.key in tested), None)
+        tw = strength_twin(reg, base_keys, effect, keys, heldout_error_reduction, neutral,
+                           model, steps, tested)
+        if tw is not None:
+            return tw
+    return None
 
 
 def twin_suspects(reg: Regression, base_keys: Sequence[str],
@@ -227,10 +311,15 @@ def _readable(key: str, value: float) -> tuple[str, float]:
 def strength_twin(reg: Regression, base_keys: Sequence[str], effect: str,
                   keys: Sequence[str], heldout_error_reduction: float,
                   neutral: Mapping[str, float],
-                  model: StrengthModel | None = None) -> StrengthTwin | None:
-    """Whether ``effect`` (columns ``keys``) is a terrain-strength mismatch in disguise:
-    it fails the held-out or the AICc test of §3.3 once the strength columns join the
-    model ``base_keys``. None when it passes, or when there is no strength column.
+                  model: StrengthModel | None = None,
+                  steps: Mapping[str, float] | None = None,
+                  tested: Sequence[str] | None = None) -> StrengthTwin | None:
+    """Whether ``effect`` (columns ``keys``) is a terrain-file parameter mismatch in
+    disguise: it fails the held-out or the AICc test of §3.3 once the tested columns join
+    the model ``base_keys``, and those columns themselves remove at least
+    :data:`TWIN_SHARE` of what it removes alone (``heldout_error_reduction``) and at least
+    the screening's 2 %. None otherwise, when there is no tested column, or when the
+    refined model ended at a bound of a parameter's range (:attr:`StrengthModel.at_bound`).
 
     Args:
         reg: the screening's regression (the model at the terrain file's strength).
@@ -240,11 +329,18 @@ def strength_twin(reg: Regression, base_keys: Sequence[str], effect: str,
             (:func:`strength_model`): the test then runs on its regression (the
             candidate replayed there, beside the strength's derivative there), and the
             strength reported is the refined one. None: the linear test on ``reg``.
+        steps: column key → its finite-difference step; the parameter the fit moves
+            furthest in these steps is the twin's reading (:attr:`StrengthTwin.parameter`;
+            None or without steps: φ_s).
+        tested: the tested columns' keys (None: every one the regression has).
     """
     test = model.regression if model is not None else reg
     if any(k not in test.cols for k in keys):
         return None                       # its replays diverged at the refined strength
-    sk = [k for k in strength_keys(test) if k not in base_keys]
+    if model is not None and model.at_bound:
+        return None     # the data ask for a value out of the parameters' range: no reading
+    sk = [k for k in strength_keys(test) if k not in base_keys
+          and (tested is None or k in tested)]
     if not sk:
         return None
     base = list(base_keys)
@@ -255,14 +351,21 @@ def strength_twin(reg: Regression, base_keys: Sequence[str], effect: str,
     daicc = test.aicc(base + sk + list(keys)) - test.aicc(base + sk)
     if red_given >= MIN_HELDOUT_REDUCTION and daicc <= MAX_DELTA_AICC:
         return None
+    strength_red = float(1.0 - cv_s / cv0) if cv0 > 0 else 0.0
+    if strength_red < max(MIN_HELDOUT_REDUCTION, TWIN_SHARE * heldout_error_reduction):
+        return None         # the parameters do not explain what the candidate explained
     beta, _ = test.fit(base + sk)
-    start = {k: (model.value if model is not None and k == model.key else neutral[k])
+    start = {k: (model.value_of(k, neutral[k]) if model is not None else neutral[k])
              for k in sk if k in neutral}
-    fitted = dict(_readable(k, start[k] + float(b))
-                  for k, b in zip(sk, beta[len(base):]) if k in start)
+    moved = {k: float(b) for k, b in zip(sk, beta[len(base):])}
+    fitted = dict(_readable(k, start[k] + moved[k]) for k in sk if k in start)
     filed = dict(_readable(k, neutral[k]) for k in sk if k in neutral)
+    # the reading: the parameter furthest from the file, in steps of its column
+    shifts = {k: abs(start[k] + moved[k] - neutral[k]) / steps[k]
+              for k in sk if k in start and (steps or {}).get(k)}
+    parameter = _readable(max(shifts, key=shifts.get), 0.0)[0] if shifts else "phi_s_deg"
     return StrengthTwin(effect, float(heldout_error_reduction), float(red_given), float(daicc),
-                        float(1.0 - cv_s / cv0) if cv0 > 0 else 0.0, fitted, filed)
+                        strength_red, fitted, filed, parameter)
 
 
 def torque_side(candidates: CandidateSet) -> frozenset[str]:
@@ -284,4 +387,5 @@ def not_twins(candidates: CandidateSet, proposal: Proposal | None) -> frozenset[
 
 
 __all__ = ["torque_side", "not_twins", "StrengthTwin", "StrengthModel", "add_strength_sensitivity", "strength_model",
+           "strength_models", "first_twin", "TESTED_GROUPS", "TWIN_SHARE",
            "strength_keys", "strength_twin", "twin_suspects", "STRENGTH_ITERATIONS", "STRENGTH_TOLERANCE"]

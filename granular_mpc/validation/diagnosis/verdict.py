@@ -226,12 +226,15 @@ def unexplained_structure(v: VerdictInputs) -> Verdict | None:
 
 def refused_evidence(v: VerdictInputs) -> Verdict | None:
     """Nothing added and no major cell, but a candidate passed every screening test and
-    was refused by the acceptance: the screening found structure that no candidate's
-    replays confirm. Saying "no significant missing effect" would deny the screening's
-    own result (a surface tilt whose replays raise ``grf_x`` by 2.5 % while its held-out
-    touchdown heights fall by 24 %)."""
+    was refused by the acceptance, or is a twin of a terrain-file parameter
+    (:mod:`.strength`): the screening found structure that no candidate's replays
+    confirm, or that a parameter of the terrain file explains as well. Saying "no
+    significant missing effect" would deny the screening's own result (a surface tilt
+    whose replays raise ``grf_x`` by 2.5 % while its held-out touchdown heights fall by
+    24 %; a plant damping 3× the file's that a cohesion removes 15 % of)."""
     refused = [e for e in v.ranking if not e.added and e.significant and e.not_added_because]
-    if v.selected or not refused:
+    twins = [t for t in v.strength_twins if t.effect not in v.selected]
+    if v.selected or not (refused or twins):
         return None
 
     def one(e: Ranked) -> str:
@@ -240,8 +243,12 @@ def refused_evidence(v: VerdictInputs) -> Verdict | None:
                 f"{error_change(e.heldout_error_reduction)}, ΔAICc {e.delta_aicc:.0f}, "
                 f"inclusion {'–' if inc is None else f'{inc:.2f}'}) but was not added")
 
+    def twin(t: StrengthTwin) -> str:
+        return (f"{t.effect} (held-out error {error_change(t.heldout_error_reduction)}) is "
+                "explained as well by a parameter of the terrain file")
+
     text = ("the screening finds structure that no candidate's replays confirm: "
-            + "; ".join(one(e) for e in refused)
+            + "; ".join([one(e) for e in refused] + [twin(t) for t in twins])
             + f"; no channel × phase cell shows a systematic residual larger than "
               f"{MAJOR_BIAS:g} × the stance-to-stance scatter")
     return Verdict("unexplained_structure", text, v.selected)
