@@ -111,16 +111,22 @@ def test_the_verdict_names_the_twin_and_adds_nothing():
     assert "alone by −26.0 %" in tw.sentence() and "beside φ_s by +3.7 %" in tw.sentence()
 
 
-def _shapes(seed: int, n_groups: int = 6, n_rows: int = 300):
-    """Rows of a φ_s mismatch far outside the linear range: the plant's response to the
-    strength (``chord``, from the file's 38° to the plant's 33°) is not the derivative at
-    38° (``slope``), and a depth-dependent candidate (``dh``) shares the difference."""
+def _grid(seed: int, n_groups: int = 6, n_rows: int = 300):
+    """The rows the constructed designs share: a generator, trial groups, 10 phase bins,
+    the bins' abscissa x ∈ [−2, 2] and a ζ nuisance column (its first draw)."""
     rng = np.random.default_rng(seed)
     n = n_groups * n_rows
     groups = np.repeat([f"t{k}" for k in range(n_groups)], n_rows)
     bins = np.arange(n) % 10
-    x = np.linspace(-2.0, 2.0, 10)[bins]
-    nuis = rng.normal(size=n)
+    return rng, groups, bins, np.linspace(-2.0, 2.0, 10)[bins], rng.normal(size=n)
+
+
+def _shapes(seed: int, n_groups: int = 6, n_rows: int = 300):
+    """Rows of a φ_s mismatch far outside the linear range: the plant's response to the
+    strength (``chord``, from the file's 38° to the plant's 33°) is not the derivative at
+    38° (``slope``), and a depth-dependent candidate (``dh``) shares the difference."""
+    rng, groups, bins, x, nuis = _grid(seed, n_groups, n_rows)
+    n = x.size
     slope = 10.0 * (x + 0.3 * rng.normal(size=n))
     curve = 10.0 * (x + 0.8 * x ** 2 + 0.3 * rng.normal(size=n))
     dh = -(x ** 2 + 0.2 * x + 0.3 * rng.normal(size=n))
@@ -236,12 +242,8 @@ def _contact_design(truth: str, seed: int = 0, n_groups: int = 6, n_rows: int = 
     (both pull on the rising sole): the residual is a plant damping of 3× the file's 100
     N·s/m (``truth="damping"``), a real suction (``truth="cohesion"``: its own shape, 40 %
     shared with the damping's) or noise only (``truth="none"``)."""
-    rng = np.random.default_rng(seed)
-    n = n_groups * n_rows
-    groups = np.repeat([f"t{k}" for k in range(n_groups)], n_rows)
-    bins = np.arange(n) % 10
-    x = np.linspace(-2.0, 2.0, 10)[bins]
-    nuis = rng.normal(size=n)
+    rng, groups, bins, x, nuis = _grid(seed, n_groups, n_rows)
+    n = x.size
     phi = 10.0 * (x + 0.3 * rng.normal(size=n))
     rise = np.clip(x, 0.0, None) + 0.2 * rng.normal(size=n)        # the rising sole
     damp = -0.01 * rise                                             # per N·s/m
@@ -254,7 +256,13 @@ def _contact_design(truth: str, seed: int = 0, n_groups: int = 6, n_rows: int = 
     elif truth == "cohesion":
         y += 1500.0 * coh
     X = {"calibration.zeta": nuis, PHI: phi, DAMP: damp, MASS: mass, COH: coh}
-    d = Design(y, X, groups, np.zeros(n, int), np.full(n, "intrusion_z"), bins,
+    return _contact_regression(groups, bins, y, X)
+
+
+def _contact_regression(groups, bins, y, X) -> Regression:
+    """The contact designs' regression: the columns ``X`` bounded as in a diagnosis (the
+    damping per N·s/m, the added mass per unit scale, the suction per Pa)."""
+    d = Design(y, X, groups, np.zeros(y.size, int), np.full(y.size, "intrusion_z"), bins,
                {"intrusion_z": 1.0}, 1.0)
     bounds = {k: (-10.0, 10.0) for k in X}
     bounds.update({DAMP: (-100.0, 900.0), MASS: (-1.0, 4.0), COH: (0.0, 50000.0)})
@@ -313,23 +321,14 @@ def test_parameters_that_explain_nothing_make_no_twin():
 def _spoiled(seed: int = 0):
     """A refined model's regression where the contact columns remove about a quarter of
     the error and the candidate's column (replayed there) explains nothing beside them."""
-    rng = np.random.default_rng(seed)
-    n_groups, n_rows = 6, 300
-    n = n_groups * n_rows
-    groups = np.repeat([f"t{k}" for k in range(n_groups)], n_rows)
-    bins = np.arange(n) % 10
-    x = np.linspace(-2.0, 2.0, 10)[bins]
-    nuis = rng.normal(size=n)
+    rng, groups, bins, x, nuis = _grid(seed)
+    n = x.size
     damp = -0.01 * (np.clip(x, 0.0, None) + 0.2 * rng.normal(size=n))
     mass = 0.5 * np.sin(2.0 * x) + 0.2 * rng.normal(size=n)
     rest = np.cos(3.0 * x)
     y = 0.8 * nuis + 40.0 * damp + 0.6 * rest + 0.5 * rng.normal(size=n)
     X = {"calibration.zeta": nuis, DAMP: damp, MASS: mass, COH: rng.normal(size=n)}
-    d = Design(y, X, groups, np.zeros(n, int), np.full(n, "intrusion_z"), bins,
-               {"intrusion_z": 1.0}, 1.0)
-    bounds = {k: (-10.0, 10.0) for k in X}
-    bounds.update({DAMP: (-100.0, 900.0), MASS: (-1.0, 4.0), COH: (0.0, 50000.0)})
-    return Regression(d, bounds, ["calibration.zeta"], stance_design=d)
+    return _contact_regression(groups, bins, y, X)
 
 
 def test_a_twin_needs_parameters_that_explain_half_of_what_the_candidate_did():
